@@ -1,0 +1,58 @@
+// Hertz-Mindlin contact with Coulomb friction (no-slip Mindlin tangential stiffness),
+// damping after Tsuji et al. (1992) in the form used by LIGGGHTS/LAMMPS:
+//
+//   E* = E / (2 (1 - nu^2)),  G* = E / (4 (2 - nu)(1 + nu))     (identical materials)
+//   R* = r_i r_j / (r_i + r_j),  a = sqrt(R* delta)
+//   S_n = 2 E* a,   S_t = 8 G* a
+//   F_n = 4/3 E* sqrt(R*) delta^(3/2) - gamma_n v_n
+//   gamma_n = -2 sqrt(5/6) beta sqrt(S_n m_eff),  gamma_t likewise with S_t,
+//   beta = ln(e) / sqrt(ln^2(e) + pi^2)
+//   xi <- rotate(xi) + v_t dt,  F_t = -S_t xi - gamma_t v_t,  |F_t| <= mu max(F_n, 0)
+//
+// Inputs and output follow contact_linear.h (n from i to j, force on j).
+#pragma once
+
+#include "contact_linear.h"
+
+namespace hs::bonded {
+
+struct HertzContactParams {
+  double e_star = 0.0;   ///< effective Young's modulus, Pa
+  double g_star = 0.0;   ///< effective shear modulus, Pa
+  double beta = 0.0;     ///< ln(e)/sqrt(ln^2 e + pi^2) (<= 0)
+  double mu = 0.0;       ///< Coulomb friction
+
+  static HertzContactParams from_material(double E, double nu, double restitution, double mu) {
+    HertzContactParams p;
+    p.e_star = E / (2.0 * (1.0 - nu * nu));
+    p.g_star = E / (4.0 * (2.0 - nu) * (1.0 + nu));
+    const double l = std::log(restitution >= 1.0 ? 1.0 : restitution);
+    p.beta = l / std::sqrt(l * l + kPi * kPi);
+    p.mu = mu;
+    return p;
+  }
+};
+
+inline ContactResult hertz_contact(const HertzContactParams& p, double delta, double r_star,
+                                   const Vec3& n, double vn, const Vec3& vt, double m_eff,
+                                   double dt, Vec3& xi) {
+  const double a = std::sqrt(r_star * delta);
+  const double sn = 2.0 * p.e_star * a;
+  const double st = 8.0 * p.g_star * a;
+  constexpr double c = 1.8257418583505538;  // 2*sqrt(5/6)
+  const double gn = -c * p.beta * std::sqrt(sn * m_eff);
+  const double gt = -c * p.beta * std::sqrt(st * m_eff);
+  const double fn = (4.0 / 3.0) * p.e_star * a * delta - gn * vn;
+  rotate_history(xi, n);
+  xi += vt * dt;
+  Vec3 ft = -st * xi - gt * vt;
+  coulomb_cap(ft, xi, vt, st, gt, p.mu, fn > 0.0 ? fn : 0.0);
+  return {fn * n + ft, fn};
+}
+
+/// Normal elastic energy of a Hertz contact: 8/15 E* sqrt(R*) delta^(5/2).
+inline double hertz_contact_energy(const HertzContactParams& p, double delta, double r_star) {
+  return (8.0 / 15.0) * p.e_star * std::sqrt(r_star) * std::pow(delta, 2.5);
+}
+
+}  // namespace hs::bonded

@@ -1,0 +1,91 @@
+#include "particle_store.h"
+
+#include <cassert>
+#include <stdexcept>
+
+namespace hs::bonded {
+
+void ParticleStore::reserve(std::size_t n) {
+  x.reserve(n); v.reserve(n); f.reserve(n); omega.reserve(n); torque.reserve(n);
+  q.reserve(n); radius.reserve(n); inv_mass.reserve(n); inv_inertia.reserve(n);
+  mass.reserve(n); buoyant_volume.reserve(n); gid.reserve(n); material.reserve(n);
+  flags.reserve(n); bond_count.reserve(n);
+}
+
+std::size_t ParticleStore::add(const ParticleInit& p, GlobalId id) {
+  if (n_ghost != 0) throw std::logic_error("ParticleStore::add: cannot add owned particles while ghosts exist");
+  if (!(p.mass > 0.0) || !(p.radius > 0.0))
+    throw std::invalid_argument("ParticleStore::add: particle mass and radius must be positive");
+  const std::size_t i = x.size();
+  x.push_back(p.x); v.push_back(p.v); f.push_back(Vec3::Zero());
+  omega.push_back(p.omega); torque.push_back(Vec3::Zero());
+  q.push_back(p.q.normalized());
+  radius.push_back(p.radius);
+  const bool frozen = (p.flags & kFlagFrozen) != 0;
+  inv_mass.push_back(frozen ? 0.0 : 1.0 / p.mass);
+  // Solid sphere, I = 2/5 m r^2. The lattice-cell mass model scales m, and the
+  // inertia with it, so the rotational/translational frequency ratio is unchanged.
+  inv_inertia.push_back(frozen ? 0.0 : 1.0 / (0.4 * p.mass * p.radius * p.radius));
+  mass.push_back(p.mass);
+  buoyant_volume.push_back(p.buoyant_volume);
+  gid.push_back(id);
+  material.push_back(p.material);
+  flags.push_back(p.flags);
+  bond_count.push_back(0);
+  index_[id] = static_cast<std::uint32_t>(i);
+  n_owned = x.size();
+  if (id >= next_gid_) next_gid_ = id + 1;
+  return i;
+}
+
+template <class T>
+static void apply_order(std::vector<T>& a, const std::vector<std::uint32_t>& order) {
+  std::vector<T> b;
+  b.reserve(a.size());
+  for (auto k : order) b.push_back(a[k]);
+  for (std::size_t k = order.size(); k < a.size(); ++k) b.push_back(a[k]);  // ghosts keep their place
+  a.swap(b);
+}
+
+void ParticleStore::permute(const std::vector<std::uint32_t>& order) {
+  assert(order.size() == n_owned);
+  apply_order(x, order); apply_order(v, order); apply_order(f, order);
+  apply_order(omega, order); apply_order(torque, order); apply_order(q, order);
+  apply_order(radius, order); apply_order(inv_mass, order); apply_order(inv_inertia, order);
+  apply_order(mass, order); apply_order(buoyant_volume, order); apply_order(gid, order);
+  apply_order(material, order); apply_order(flags, order); apply_order(bond_count, order);
+  rebuild_index();
+}
+
+void ParticleStore::compact(const std::vector<char>& keep) {
+  std::vector<std::uint32_t> order;
+  for (std::uint32_t i = 0; i < n_owned; ++i)
+    if (keep[i]) order.push_back(i);
+  const std::size_t n_new = order.size();
+  // Shrink owned range: build new arrays with kept owned particles then ghosts.
+  for (std::size_t g = n_owned; g < size(); ++g) order.push_back(static_cast<std::uint32_t>(g));
+  auto take = [&](auto& a) {
+    std::remove_reference_t<decltype(a)> b;
+    b.reserve(order.size());
+    for (auto k : order) b.push_back(a[k]);
+    a.swap(b);
+  };
+  take(x); take(v); take(f); take(omega); take(torque); take(q); take(radius);
+  take(inv_mass); take(inv_inertia); take(mass); take(buoyant_volume); take(gid);
+  take(material); take(flags); take(bond_count);
+  n_owned = n_new;
+  rebuild_index();
+}
+
+void ParticleStore::rebuild_index() {
+  index_.clear();
+  index_.reserve(size() * 2);
+  for (std::size_t i = 0; i < size(); ++i) index_[gid[i]] = static_cast<std::uint32_t>(i);
+}
+
+void ParticleStore::clear_forces() {
+  for (auto& a : f) a.setZero();
+  for (auto& a : torque) a.setZero();
+}
+
+}  // namespace hs::bonded
