@@ -1,0 +1,679 @@
+#include "engine.h"
+
+#include "common/error.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <sstream>
+#include <unordered_map>
+
+namespace hs::bonded {
+
+namespace {
+
+struct PairKey {
+  GlobalId a, b;
+  bool operator==(const PairKey& o) const { return a == o.a && b == o.b; }
+};
+struct PairKeyHash {
+  std::size_t operator()(const PairKey& k) const {
+    return std::hash<std::uint64_t>()(k.a * 0x9E3779B97F4A7C15ull ^ (k.b + 0x632BE59BD9B4E019ull));
+  }
+};
+PairKey make_key(GlobalId x, GlobalId y) { return x < y ? PairKey{x, y} : PairKey{y, x}; }
+
+// Law adaptors: one signature for the pair loop, so it is compiled once per law.
+struct LinearLaw {
+  LinearContactParams p;
+  ContactResult operator()(double delta, double /*r_star*/, const Vec3& n, double vn,
+                           const Vec3& vt, double m_eff, double dt, Vec3& xi) const {
+    return linear_contact(p, delta, n, vn, vt, m_eff, dt, xi);
+  }
+  double energy(double delta, double, const Vec3& xi) const { return linear_contact_energy(p, delta, xi); }
+};
+struct HertzLaw {
+  HertzContactParams p;
+  ContactResult operator()(double delta, double r_star, const Vec3& n, double vn, const Vec3& vt,
+                           double m_eff, double dt, Vec3& xi) const {
+    return hertz_contact(p, delta, r_star, n, vn, vt, m_eff, dt, xi);
+  }
+  double energy(double delta, double r_star, const Vec3& xi) const {
+    const double st = 8.0 * p.g_star * std::sqrt(r_star * delta);
+    return hertz_contact_energy(p, delta, r_star) + 0.5 * st * xi.squaredNorm();
+  }
+};
+
+// Rotate q by the world-frame rotation vector phi = w dt (exact exponential map).
+inline void rotate_orientation(Quat& q, const Vec3& w, double dt) {
+  const double wn2 = w.squaredNorm();
+  if (wn2 == 0.0) return;
+  const double h2 = 0.25 * wn2 * dt * dt;  // (|w| dt / 2)^2
+  double c, s;                             // cos(h), sin(h)/|w|
+  if (h2 < 1e-4) {  // Taylor to h^6: error < 1e-19 at h = 1e-2
+    c = 1.0 - h2 / 2.0 + h2 * h2 / 24.0 - h2 * h2 * h2 / 720.0;
+    s = 0.5 * dt * (1.0 - h2 / 6.0 + h2 * h2 / 120.0 - h2 * h2 * h2 / 5040.0);
+  } else {
+    const double wn = std::sqrt(wn2);
+    const double h = 0.5 * wn * dt;
+    c = std::cos(h);
+    s = std::sin(h) / wn;
+  }
+  const Quat dq(c, s * w.x(), s * w.y(), s * w.z());
+  q = dq * q;
+  q.normalize();
+}
+
+}  // namespace
+
+Engine::Engine(const EngineDef& def) : def_(def) { dt_ = def.dt; }
+
+std::size_t Engine::add_particle(const ParticleInit& p) {
+  const std::size_t i = ps_.add(p, ps_.next_gid());
+  for (auto& h : wall_hist_) h.push_back(Vec3::Zero());
+  need_rebuild_ = true;
+  forces_valid_ = false;
+  if (dt_ == 0.0) dt_ = eq2_time_step();
+  return i;
+}
+
+void Engine::add_bond(GlobalId a, GlobalId b, BondKind kind) {
+  if (a == b) throw std::invalid_argument("add_bond: a particle cannot bond to itself");
+  const GlobalId gi = std::min(a, b), gj = std::max(a, b);
+  const std::uint32_t i = ps_.local(gi), j = ps_.local(gj);
+  if (i == ParticleStore::kNone || j == ParticleStore::kNone)
+    throw std::invalid_argument("add_bond: unknown particle id");
+  Bond bd;
+  bd.i = i; bd.j = j; bd.gi = gi; bd.gj = gj; bd.kind = kind;
+  bd.ref = BondRef::at_rest(ps_.x[i], ps_.q[i], ps_.radius[i], ps_.x[j], ps_.q[j], ps_.radius[j]);
+  bonds_.push_back(bd);
+  ++ps_.bond_count[i];
+  ++ps_.bond_count[j];
+  need_rebuild_ = true;
+  forces_valid_ = false;
+}
+
+std::size_t Engine::bond_touching(std::size_t first, std::size_t last, BondKind kind, double rel_tol) {
+  if (last <= first) return 0;
+  double rmax = 0.0;
+  Vec3 lo = ps_.x[first], hi = lo;
+  for (std::size_t i = first; i < last; ++i) {
+    rmax = std::max(rmax, ps_.radius[i]);
+    lo = lo.cwiseMin(ps_.x[i]);
+    hi = hi.cwiseMax(ps_.x[i]);
+  }
+  const double h = 2.0 * rmax * (1.0 + rel_tol) * 1.0001;
+  const Eigen::Vector3i dims = (((hi - lo) / h).array().floor().cast<int>() + 1).matrix();
+  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> cells;
+  auto key = [&](int x, int y, int z) {
+    return (static_cast<std::int64_t>(x) * dims.y() + y) * dims.z() + z;
+  };
+  auto cell = [&](const Vec3& x) { return ((x - lo) / h).array().floor().cast<int>().matrix().eval(); };
+  for (std::size_t i = first; i < last; ++i) {
+    const Eigen::Vector3i c = cell(ps_.x[i]);
+    cells[key(c.x(), c.y(), c.z())].push_back(static_cast<std::uint32_t>(i));
+  }
+  std::size_t made = 0;
+  std::vector<std::pair<GlobalId, GlobalId>> todo;
+  for (std::size_t i = first; i < last; ++i) {
+    const Eigen::Vector3i c = cell(ps_.x[i]);
+    for (int dx = -1; dx <= 1; ++dx)
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dz = -1; dz <= 1; ++dz) {
+          const int cx = c.x() + dx, cy = c.y() + dy, cz = c.z() + dz;
+          if (cx < 0 || cy < 0 || cz < 0 || cx >= dims.x() || cy >= dims.y() || cz >= dims.z()) continue;
+          auto it = cells.find(key(cx, cy, cz));
+          if (it == cells.end()) continue;
+          for (std::uint32_t j : it->second) {
+            if (j <= i) continue;
+            const double lim = (ps_.radius[i] + ps_.radius[j]) * (1.0 + rel_tol);
+            if ((ps_.x[j] - ps_.x[i]).squaredNorm() <= lim * lim) todo.emplace_back(ps_.gid[i], ps_.gid[j]);
+          }
+        }
+  }
+  std::sort(todo.begin(), todo.end());
+  for (auto& [a, b] : todo) {
+    add_bond(a, b, kind);
+    ++made;
+  }
+  return made;
+}
+
+int Engine::add_wall(const PlaneWall& w) {
+  PlaneWall c = w;
+  const double nn = c.normal.norm();
+  if (!(nn > 0.0)) throw std::invalid_argument("add_wall: wall normal must be non-zero");
+  c.normal /= nn;
+  walls_.push_back(c);
+  wall_force_.push_back(Vec3::Zero());
+  wall_hist_.emplace_back(ps_.size(), Vec3::Zero());
+  forces_valid_ = false;
+  return static_cast<int>(walls_.size()) - 1;
+}
+
+// ---------------------------------------------------------------- time step
+
+double Engine::eq2_time_step() const {
+  double rmin = INFINITY;
+  for (std::size_t i = 0; i < ps_.owned(); ++i) rmin = std::min(rmin, ps_.radius[i]);
+  if (!std::isfinite(rmin)) return 0.0;
+  return def_.dt_alpha * 2.0 * rmin * std::sqrt(def_.density / def_.youngs_modulus);
+}
+
+double Engine::critical_time_step() const {
+  double inv_m = 0.0, inv_i = 0.0, r = 0.0, rmin = INFINITY;
+  std::uint8_t zb = 0;
+  for (std::size_t i = 0; i < ps_.owned(); ++i) {
+    inv_m = std::max(inv_m, ps_.inv_mass[i]);
+    inv_i = std::max(inv_i, ps_.inv_inertia[i]);
+    r = std::max(r, ps_.radius[i]);
+    rmin = std::min(rmin, ps_.radius[i]);
+    zb = std::max(zb, ps_.bond_count[i]);
+  }
+  if (inv_m == 0.0) return INFINITY;
+  const double m = 1.0 / inv_m;
+  // Contact springs (identical particles at worst-case mass, inertia and lever arm).
+  double kn, kt, zeta;
+  if (def_.contact_model == ContactModel::LinearSpringDashpot) {
+    kn = def_.contact.kn;
+    kt = def_.contact.kt;
+    zeta = std::max(def_.contact.zeta_n, def_.contact.zeta_t);
+  } else {
+    const double rs = 0.5 * rmin;
+    const double a = std::sqrt(rs * def_.hertz_reference_overlap * rmin);
+    kn = 2.0 * def_.hertz.e_star * a;
+    kt = 8.0 * def_.hertz.g_star * a;
+    // gamma = 2 sqrt(5/6) |beta| sqrt(S m_eff)  =>  zeta = gamma / (2 sqrt(S m_eff)) = sqrt(5/6) |beta|
+    zeta = std::sqrt(5.0 / 6.0) * (-def_.hertz.beta);
+  }
+  const double s_contact = 2.0 * inv_m * kn + kt * (2.0 * inv_m + 2.0 * r * r * inv_i);
+  double s_bond = 0.0;
+  bool has_kind[2] = {false, false};
+  for (const auto& b : bonds_) has_kind[static_cast<int>(b.kind)] = true;
+  for (int k = 0; k < 2; ++k) {
+    if (!has_kind[k]) continue;
+    const auto& p = def_.bond[k];
+    s_bond = std::max(s_bond, 2.0 * inv_m * p.kn + p.ks * (2.0 * inv_m + 2.0 * r * r * inv_i) +
+                                  2.0 * inv_i * (p.kb + p.kt));
+    if (p.kn > 0.0) zeta = std::max(zeta, p.gamma_n / (2.0 * std::sqrt(0.5 * m * p.kn)));
+    if (p.ks > 0.0) zeta = std::max(zeta, p.gamma_s / (2.0 * std::sqrt(0.5 * m * p.ks)));
+    if (p.kb > 0.0 && inv_i > 0.0) zeta = std::max(zeta, p.gamma_b / (2.0 * std::sqrt(0.5 / inv_i * p.kb)));
+    if (p.kt > 0.0 && inv_i > 0.0) zeta = std::max(zeta, p.gamma_t / (2.0 * std::sqrt(0.5 / inv_i * p.kt)));
+  }
+  // Gershgorin: a particle has at most 12 touching equal neighbours; bonds take their slots.
+  const double z_b = zb;
+  const double omega2 = std::max(12.0 * s_contact, z_b * s_bond + std::max(0.0, 12.0 - z_b) * s_contact);
+  if (!(omega2 > 0.0)) return INFINITY;
+  return 2.0 / std::sqrt(omega2) * (std::sqrt(1.0 + zeta * zeta) - zeta);
+}
+
+void Engine::check_time_step() const {
+  const double crit = critical_time_step();
+  if (!(dt_ > 0.0) || !std::isfinite(dt_)) {
+    std::ostringstream s;
+    s << "time step " << dt_ << " s is not a positive number; set it > 0 or leave it 0 for the paper's Eq. 2 default";
+    throw InputError("/time/dt", s.str());
+  }
+  if (dt_ > crit) {
+    std::ostringstream s;
+    s.precision(4);
+    s << "time step " << dt_ << " s exceeds the stable limit " << crit
+      << " s of the stiffest spring (contact, bond normal/shear/bending/twist, damping included); "
+      << "use dt <= " << crit << " s, e.g. the paper's Eq. 2 with alpha = 0.1 gives " << eq2_time_step()
+      << " s (set /time/dt to 0 to use it)";
+    throw InputError("/time/dt", s.str());
+  }
+}
+
+double Engine::skin() const {
+  if (def_.skin > 0.0) return def_.skin;
+  double rmin = INFINITY;
+  for (std::size_t i = 0; i < ps_.size(); ++i) rmin = std::min(rmin, ps_.radius[i]);
+  return std::isfinite(rmin) ? 0.2 * rmin : 0.0;
+}
+
+// ---------------------------------------------------------------- neighbours
+
+void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint32_t ncells) {
+  const std::size_t n = ps_.owned();
+  std::vector<std::uint32_t> count(ncells + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++count[cell_of[i] + 1];
+  for (std::uint32_t c = 0; c < ncells; ++c) count[c + 1] += count[c];
+  std::vector<std::uint32_t> order(n), new_of_old(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t k = count[cell_of[i]]++;
+    order[k] = static_cast<std::uint32_t>(i);
+    new_of_old[i] = k;
+  }
+  bool identity = true;
+  for (std::size_t k = 0; k < n && identity; ++k) identity = order[k] == k;
+  if (identity) return;
+  ps_.permute(order);
+  for (auto& b : bonds_) {
+    b.i = new_of_old[b.i];
+    b.j = new_of_old[b.j];
+  }
+  for (auto& p : pairs_) {
+    p.i = new_of_old[p.i];
+    p.j = new_of_old[p.j];
+  }
+  for (auto& h : wall_hist_) {
+    std::vector<Vec3> nh(h.size());
+    for (std::size_t k = 0; k < n; ++k) nh[k] = h[order[k]];
+    h.swap(nh);
+  }
+}
+
+void Engine::build_neighbors() {
+  const std::size_t n = ps_.size();
+  ++stats_.neighbor_rebuilds;
+  need_rebuild_ = false;
+  if (n == 0) {
+    pairs_.clear();
+    return;
+  }
+  const double sk = skin();
+  double rmax = 0.0;
+  Vec3 lo = ps_.x[0], hi = lo;
+  for (std::size_t i = 0; i < n; ++i) {
+    rmax = std::max(rmax, ps_.radius[i]);
+    lo = lo.cwiseMin(ps_.x[i]);
+    hi = hi.cwiseMax(ps_.x[i]);
+  }
+  double h = 2.0 * rmax + sk;
+  // Keep the grid no larger than ~2 cells per particle even if particles fly apart.
+  const Vec3 ext = (hi - lo).cwiseMax(Vec3::Constant(1e-12));
+  while ((std::floor(ext.x() / h) + 1) * (std::floor(ext.y() / h) + 1) * (std::floor(ext.z() / h) + 1) >
+         2.0 * static_cast<double>(n) + 27.0)
+    h *= 1.26;
+  const int nx = static_cast<int>(ext.x() / h) + 1, ny = static_cast<int>(ext.y() / h) + 1,
+            nz = static_cast<int>(ext.z() / h) + 1;
+  const std::uint32_t ncells = static_cast<std::uint32_t>(nx) * ny * nz;
+  auto cell_coords = [&](const Vec3& x, int& cx, int& cy, int& cz) {
+    cx = std::min(nx - 1, static_cast<int>((x.x() - lo.x()) / h));
+    cy = std::min(ny - 1, static_cast<int>((x.y() - lo.y()) / h));
+    cz = std::min(nz - 1, static_cast<int>((x.z() - lo.z()) / h));
+  };
+  cell_of_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    int cx, cy, cz;
+    cell_coords(ps_.x[i], cx, cy, cz);
+    cell_of_[i] = (static_cast<std::uint32_t>(cz) * ny + cy) * nx + cx;
+  }
+  if (def_.spatial_sort && ps_.n_ghost == 0) {
+    sort_spatially(cell_of_, ncells);
+    for (std::size_t i = 0; i < n; ++i) {
+      int cx, cy, cz;
+      cell_coords(ps_.x[i], cx, cy, cz);
+      cell_of_[i] = (static_cast<std::uint32_t>(cz) * ny + cy) * nx + cx;
+    }
+  }
+  // Counting sort of particle indices by cell.
+  cell_start_.assign(ncells + 1, 0);
+  for (std::size_t i = 0; i < n; ++i) ++cell_start_[cell_of_[i] + 1];
+  for (std::uint32_t c = 0; c < ncells; ++c) cell_start_[c + 1] += cell_start_[c];
+  cell_items_.resize(n);
+  {
+    std::vector<std::uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
+    for (std::size_t i = 0; i < n; ++i) cell_items_[fill[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
+  }
+  // Bond partners (CSR), to keep bonded pairs out of the contact list.
+  partner_start_.assign(n + 1, 0);
+  for (const auto& b : bonds_) {
+    ++partner_start_[b.i + 1];
+    ++partner_start_[b.j + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) partner_start_[i + 1] += partner_start_[i];
+  partner_list_.resize(partner_start_[n]);
+  {
+    std::vector<std::uint32_t> fill(partner_start_.begin(), partner_start_.end() - 1);
+    for (const auto& b : bonds_) {
+      partner_list_[fill[b.i]++] = b.j;
+      partner_list_[fill[b.j]++] = b.i;
+    }
+  }
+  // Contact history survives the rebuild, keyed by global ids.
+  std::unordered_map<PairKey, Vec3, PairKeyHash> history;
+  for (const auto& p : pairs_)
+    if (p.xi.squaredNorm() > 0.0) history.emplace(make_key(ps_.gid[p.i], ps_.gid[p.j]), p.xi);
+
+  pairs_.clear();
+  for (std::uint32_t i = 0; i < n; ++i) {
+    const Vec3 xi = ps_.x[i];
+    const double ri = ps_.radius[i];
+    const std::uint32_t c = cell_of_[i];
+    const int cx = c % nx, cy = (c / nx) % ny, cz = c / (nx * ny);
+    for (int dz = -1; dz <= 1; ++dz) {
+      const int z = cz + dz;
+      if (z < 0 || z >= nz) continue;
+      for (int dy = -1; dy <= 1; ++dy) {
+        const int y = cy + dy;
+        if (y < 0 || y >= ny) continue;
+        for (int dx = -1; dx <= 1; ++dx) {
+          const int x = cx + dx;
+          if (x < 0 || x >= nx) continue;
+          const std::uint32_t cc = (static_cast<std::uint32_t>(z) * ny + y) * nx + x;
+          for (std::uint32_t k = cell_start_[cc]; k < cell_start_[cc + 1]; ++k) {
+            const std::uint32_t j = cell_items_[k];
+            if (j <= i) continue;
+            if (i >= ps_.n_owned && j >= ps_.n_owned) continue;  // ghost-ghost: not ours
+            const double lim = ri + ps_.radius[j] + sk;
+            if ((ps_.x[j] - xi).squaredNorm() > lim * lim) continue;
+            bool bonded = false;
+            for (std::uint32_t b = partner_start_[i]; b < partner_start_[i + 1]; ++b)
+              if (partner_list_[b] == j) { bonded = true; break; }
+            if (bonded) continue;
+            pairs_.push_back({i, j, Vec3::Zero()});
+          }
+        }
+      }
+    }
+  }
+  if (!history.empty())
+    for (auto& p : pairs_) {
+      auto it = history.find(make_key(ps_.gid[p.i], ps_.gid[p.j]));
+      if (it != history.end()) p.xi = it->second;
+    }
+  x_at_build_.assign(ps_.x.begin(), ps_.x.end());
+  max_disp2_ = 0.0;
+}
+
+// ---------------------------------------------------------------- forces
+
+void Engine::field_forces() {
+  const std::size_t n = ps_.owned();
+  const Vec3 g = def_.gravity;
+  const double gmag = g.norm();
+  const bool water = def_.water.enabled;
+  for (std::size_t i = 0; i < n; ++i) {
+    ps_.f[i] = ps_.mass[i] * g;
+    ps_.torque[i].setZero();
+  }
+  for (std::size_t i = n; i < ps_.size(); ++i) {
+    ps_.f[i].setZero();
+    ps_.torque[i].setZero();
+  }
+  if (water)
+    for (std::size_t i = 0; i < n; ++i)
+      ps_.f[i] += water_force(def_.water, gmag, ps_.x[i], ps_.v[i], ps_.radius[i], ps_.buoyant_volume[i]);
+}
+
+void Engine::wall_forces() {
+  const std::size_t n = ps_.owned();
+  for (std::size_t k = 0; k < walls_.size(); ++k) {
+    const PlaneWall& w = walls_[k];
+    Vec3 total = Vec3::Zero();
+    auto& hist = wall_hist_[k];
+    for (std::size_t i = 0; i < n; ++i) {
+      const double r = ps_.radius[i];
+      const double dist = (ps_.x[i] - w.point).dot(w.normal);
+      if (dist >= r) {
+        hist[i].setZero();
+        continue;
+      }
+      if (ps_.inv_mass[i] == 0.0) continue;
+      const double delta = r - dist;
+      const Vec3 a = -(r - 0.5 * delta) * w.normal;
+      const Vec3 vrel = ps_.v[i] + ps_.omega[i].cross(a) - w.velocity;
+      const double vn = vrel.dot(w.normal);
+      const Vec3 vt = vrel - vn * w.normal;
+      const double m = ps_.mass[i];
+      ContactResult res;
+      if (def_.contact_model == ContactModel::LinearSpringDashpot) {
+        LinearContactParams p = def_.contact;
+        p.mu = w.friction;
+        res = linear_contact(p, delta, w.normal, vn, vt, m, dt_, hist[i]);
+      } else {
+        HertzContactParams p = def_.hertz;
+        p.mu = w.friction;
+        res = hertz_contact(p, delta, r, w.normal, vn, vt, m, dt_, hist[i]);
+      }
+      ps_.f[i] += res.force;
+      ps_.torque[i] += a.cross(res.force);
+      total -= res.force;
+      if (delta / r > worst_overlap_ratio_) {
+        worst_overlap_ratio_ = delta / r;
+        worst_overlap_i_ = static_cast<std::uint32_t>(i);
+        worst_overlap_j_ = ParticleStore::kNone - static_cast<std::uint32_t>(k);  // wall k
+      }
+    }
+    wall_force_[k] = total;
+  }
+}
+
+template <class Law>
+void Engine::pair_forces(const Law& law) {
+  Vec3* __restrict f = ps_.f.data();
+  Vec3* __restrict t = ps_.torque.data();
+  const Vec3* x = ps_.x.data();
+  const Vec3* v = ps_.v.data();
+  const Vec3* w = ps_.omega.data();
+  const double* r = ps_.radius.data();
+  const double* im = ps_.inv_mass.data();
+  const double dt = dt_;
+  double worst = 0.0;
+  std::uint32_t wi = 0, wj = 0;
+  for (auto& p : pairs_) {
+    const std::uint32_t i = p.i, j = p.j;
+    const Vec3 d = x[j] - x[i];
+    const double rs = r[i] + r[j];
+    const double d2 = d.squaredNorm();
+    if (d2 >= rs * rs) {
+      p.xi.setZero();
+      continue;
+    }
+    const double inv_sum = im[i] + im[j];
+    if (inv_sum == 0.0) continue;
+    const double dist = std::sqrt(d2);
+    const Vec3 n = d / dist;
+    const double delta = rs - dist;
+    const Vec3 ai = (r[i] - 0.5 * delta) * n;
+    const Vec3 aj = -(r[j] - 0.5 * delta) * n;
+    const Vec3 vrel = v[j] + w[j].cross(aj) - v[i] - w[i].cross(ai);
+    const double vn = vrel.dot(n);
+    const Vec3 vt = vrel - vn * n;
+    const double rstar = r[i] * r[j] / rs;
+    const ContactResult res = law(delta, rstar, n, vn, vt, 1.0 / inv_sum, dt, p.xi);
+    f[j] += res.force;
+    f[i] -= res.force;
+    t[i] -= ai.cross(res.force);
+    t[j] += aj.cross(res.force);
+    const double ratio = delta / std::min(r[i], r[j]);
+    if (ratio > worst) {
+      worst = ratio;
+      wi = i;
+      wj = j;
+    }
+  }
+  if (worst > worst_overlap_ratio_) {
+    worst_overlap_ratio_ = worst;
+    worst_overlap_i_ = wi;
+    worst_overlap_j_ = wj;
+  }
+}
+
+void Engine::bond_forces() {
+  if (bonds_.empty()) return;
+  Vec3* f = ps_.f.data();
+  Vec3* t = ps_.torque.data();
+  std::size_t n_broken = 0;
+  for (auto& b : bonds_) {
+    const std::uint32_t i = b.i, j = b.j;
+    const ParallelBondParams& p = def_.bond[static_cast<int>(b.kind)];
+    const BondKinematics k{ps_.x[i], ps_.x[j], ps_.q[i], ps_.q[j], ps_.v[i], ps_.v[j], ps_.omega[i], ps_.omega[j]};
+    const BondResult res = parallel_bond(p, b.ref, k);
+    const bool tension = res.sigma > p.sigma_c;
+    const bool shear = res.tau > p.tau_c;
+    if (tension || shear) {
+      // Broken: its force is removed from this step on. Mark via an impossible kind.
+      b.kind = static_cast<BondKind>(0xff);
+      ++n_broken;
+      if (tension) ++stats_.bonds_broken_tension; else ++stats_.bonds_broken_shear;
+      continue;
+    }
+    f[j] += res.fj;
+    f[i] -= res.fj;
+    t[i] += res.ti;
+    t[j] += res.tj;
+  }
+  if (n_broken == 0) return;
+  stats_.bonds_broken += n_broken;
+  std::size_t w = 0;
+  for (std::size_t r = 0; r < bonds_.size(); ++r) {
+    const Bond& b = bonds_[r];
+    if (static_cast<std::uint8_t>(b.kind) == 0xff) {
+      --ps_.bond_count[b.i];
+      --ps_.bond_count[b.j];
+      pairs_.push_back({b.i, b.j, Vec3::Zero()});  // now they interact by contact
+      continue;
+    }
+    bonds_[w++] = b;
+  }
+  bonds_.resize(w);
+}
+
+void Engine::compute_forces() {
+  worst_overlap_ratio_ = 0.0;
+  field_forces();
+  wall_forces();
+  if (def_.contact_model == ContactModel::LinearSpringDashpot)
+    pair_forces(LinearLaw{def_.contact});
+  else
+    pair_forces(HertzLaw{def_.hertz});
+  bond_forces();
+  forces_valid_ = true;
+}
+
+// ---------------------------------------------------------------- integration
+
+void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
+  std::ostringstream s;
+  s.precision(6);
+  bool bad = false;
+  if (!(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed)) {
+    bad = true;
+    s << "particle " << ps_.gid[worst] << " at (" << ps_.x[worst].transpose() << ") m moves at "
+      << std::sqrt(worst_v2) << " m/s, beyond the limit stability.max_speed = " << def_.limits.max_speed
+      << " m/s";
+  } else if (!(worst_overlap_ratio_ <= def_.limits.max_overlap_ratio)) {
+    bad = true;
+    s << "contact overlap reached " << worst_overlap_ratio_
+      << " of the particle radius (limit stability.max_overlap_ratio = " << def_.limits.max_overlap_ratio
+      << ")";
+    if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size())
+      s << " between particles " << ps_.gid[worst_overlap_i_] << " and " << ps_.gid[worst_overlap_j_];
+    else if (worst_overlap_i_ < ps_.size())
+      s << " between particle " << ps_.gid[worst_overlap_i_] << " and wall '"
+        << walls_[ParticleStore::kNone - worst_overlap_j_].name << "'";
+  }
+  if (!bad) return;
+  std::ostringstream m;
+  m.precision(6);
+  m << "simulation became unstable at step " << step_ << " (t = " << time_ << " s): " << s.str()
+    << ". Time step dt = " << dt_ << " s, critical dt = " << critical_time_step()
+    << " s. Reduce the time step (time.dt_alpha or time.dt), or check stiffness, damping and "
+       "initial overlaps. Output written so far is kept; this step was not written.";
+  throw SimulationError(m.str());
+}
+
+void Engine::step() {
+  if (need_rebuild_ && !forces_valid_) build_neighbors();
+  if (!forces_valid_) compute_forces();
+  const std::size_t n = ps_.owned();
+  const double dt = dt_, hdt = 0.5 * dt_;
+  const bool rotate = !bonds_.empty();
+  Vec3* x = ps_.x.data();
+  Vec3* v = ps_.v.data();
+  Vec3* w = ps_.omega.data();
+  const Vec3* f = ps_.f.data();
+  const Vec3* t = ps_.torque.data();
+  const double* im = ps_.inv_mass.data();
+  const double* ii = ps_.inv_inertia.data();
+  double disp2 = 0.0;
+  for (std::size_t i = 0; i < n; ++i) {
+    v[i] += hdt * im[i] * f[i];
+    w[i] += hdt * ii[i] * t[i];
+    x[i] += dt * v[i];
+    disp2 = std::max(disp2, (x[i] - x_at_build_[i]).squaredNorm());
+  }
+  if (rotate)
+    for (std::size_t i = 0; i < n; ++i) rotate_orientation(ps_.q[i], w[i], dt);
+  for (auto& wall : walls_) wall.point += dt * wall.velocity;
+  time_ += dt;
+  ++step_;
+  const double half_skin = 0.5 * skin();
+  if (need_rebuild_ || disp2 > half_skin * half_skin) build_neighbors();
+  compute_forces();
+  // The rebuild may have reordered the store: take every array afresh.
+  v = ps_.v.data();
+  w = ps_.omega.data();
+  f = ps_.f.data();
+  t = ps_.torque.data();
+  im = ps_.inv_mass.data();
+  ii = ps_.inv_inertia.data();
+  double worst_v2 = 0.0;
+  std::uint32_t worst = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    v[i] += hdt * im[i] * f[i];
+    w[i] += hdt * ii[i] * t[i];
+    const double v2 = v[i].squaredNorm();
+    if (!(v2 <= worst_v2)) {  // also catches NaN
+      worst_v2 = v2;
+      worst = static_cast<std::uint32_t>(i);
+      if (std::isnan(v2)) break;
+    }
+  }
+  check_blowup(worst, worst_v2);
+  if (on_step) on_step(*this);
+}
+
+void Engine::run(std::uint64_t steps) {
+  for (std::uint64_t s = 0; s < steps; ++s) step();
+}
+
+// ---------------------------------------------------------------- diagnostics
+
+EnergyReport Engine::energy() const {
+  EnergyReport e;
+  const double gmag = def_.gravity.norm();
+  for (std::size_t i = 0; i < ps_.owned(); ++i) {
+    if (ps_.inv_mass[i] == 0.0) continue;
+    e.kinetic_translational += 0.5 * ps_.mass[i] * ps_.v[i].squaredNorm();
+    e.kinetic_rotational += 0.5 / ps_.inv_inertia[i] * ps_.omega[i].squaredNorm();
+    e.gravity_potential -= ps_.mass[i] * def_.gravity.dot(ps_.x[i]);
+    if (def_.water.enabled)
+      e.buoyancy_potential += buoyancy_potential(def_.water, gmag, ps_.x[i].z(), ps_.radius[i], ps_.buoyant_volume[i]);
+  }
+  for (const auto& b : bonds_) {
+    const BondKinematics k{ps_.x[b.i], ps_.x[b.j], ps_.q[b.i], ps_.q[b.j], ps_.v[b.i], ps_.v[b.j], ps_.omega[b.i], ps_.omega[b.j]};
+    e.bond_elastic += parallel_bond(def_.bond[static_cast<int>(b.kind)], b.ref, k).energy;
+  }
+  for (const auto& p : pairs_) {
+    const double rs = ps_.radius[p.i] + ps_.radius[p.j];
+    const double dist = (ps_.x[p.j] - ps_.x[p.i]).norm();
+    if (dist >= rs) continue;
+    const double rstar = ps_.radius[p.i] * ps_.radius[p.j] / rs;
+    e.contact_elastic += def_.contact_model == ContactModel::LinearSpringDashpot
+                             ? LinearLaw{def_.contact}.energy(rs - dist, rstar, p.xi)
+                             : HertzLaw{def_.hertz}.energy(rs - dist, rstar, p.xi);
+  }
+  return e;
+}
+
+Vec3 Engine::linear_momentum() const {
+  Vec3 p = Vec3::Zero();
+  for (std::size_t i = 0; i < ps_.owned(); ++i)
+    if (ps_.inv_mass[i] > 0.0) p += ps_.mass[i] * ps_.v[i];
+  return p;
+}
+
+Vec3 Engine::angular_momentum(const Vec3& about) const {
+  Vec3 l = Vec3::Zero();
+  for (std::size_t i = 0; i < ps_.owned(); ++i) {
+    if (ps_.inv_mass[i] == 0.0) continue;
+    l += (ps_.x[i] - about).cross(ps_.mass[i] * ps_.v[i]) + ps_.omega[i] / ps_.inv_inertia[i];
+  }
+  return l;
+}
+
+}  // namespace hs::bonded

@@ -1,0 +1,37 @@
+// Hexagonal close packing (HCP) of identical spheres, spacing exactly D.
+//
+// Lattice (local frame, c-axis along z): triangular layers with in-plane vectors
+//   a1 = (D, 0, 0), a2 = (D/2, D sqrt(3)/2, 0),
+// stacked ABAB with layer spacing c = D sqrt(2/3); B layers are shifted by (a1+a2)/3.
+// Every sphere touches 12 neighbours at distance D. The volume per sphere (its lattice
+// cell) is V_cell = D^3 / sqrt(2), which is what a particle must weigh and displace for
+// the lattice to weigh and float like the solid ice it stands for.
+#pragma once
+
+#include "types.h"
+
+#include <vector>
+
+namespace hs::bonded {
+
+inline double hcp_layer_spacing(double D) { return D * 0.81649658092772603; }  // sqrt(2/3)
+inline double hcp_cell_volume(double D) { return D * D * D * 0.70710678118654752; }
+
+struct Pose {
+  Vec3 position = Vec3::Zero();
+  Quat orientation = Quat::Identity();
+};
+
+/// Centres of an HCP lattice filling the box [-half, half] (local frame) placed at
+/// `pose`. Layers are laid from the bottom face (first layer centre c/2 above it) and
+/// in-plane rows from the -x,-y corner (first centre D/2 in); a centre is kept when it
+/// lies inside the box. The number of layers is round(2*half.z / c), so a box of
+/// thickness n*c holds exactly n layers.
+std::vector<Vec3> hcp_fill_box(const Vec3& half, const Pose& pose, double D);
+
+/// Centres filling a right prism: a convex or concave polygon (local x-y, counter-
+/// clockwise) extruded over [0, height] along local z, placed at `pose`.
+std::vector<Vec3> hcp_fill_prism(const std::vector<Eigen::Vector2d>& polygon, double height,
+                                 const Pose& pose, double D);
+
+}  // namespace hs::bonded

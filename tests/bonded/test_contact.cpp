@@ -1,0 +1,96 @@
+// Two-particle normal impact against the linear spring-dashpot theory:
+//   e = exp(-pi zeta / sqrt(1 - zeta^2)),  t_c = pi / (omega_n sqrt(1 - zeta^2)).
+#include "fixtures.h"
+
+#include <gtest/gtest.h>
+
+using namespace hs;
+using namespace hs::bonded;
+
+namespace {
+
+struct ImpactResult { double e, tc; };
+
+ImpactResult impact(double restitution, ContactModel model = ContactModel::LinearSpringDashpot) {
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  d.contact_model = model;
+  const double zeta = damping_ratio_from_restitution(restitution);
+  d.contact.zeta_n = d.contact.zeta_t = zeta;
+  d.hertz = HertzContactParams::from_material(ice.E, 0.3, restitution, 0.0);
+  Engine e(d);
+  const double v0 = 0.5;
+  const double gap = 1e-4;
+  auto a = test::sphere_at(ice, Vec3(0, 0, 0)); a.v = Vec3(v0, 0, 0);
+  auto b = test::sphere_at(ice, Vec3(ice.D + gap, 0, 0)); b.v = Vec3(-v0, 0, 0);
+  e.add_particle(a);
+  e.add_particle(b);
+  // A fine step so that the discrete contact duration resolves the theory to << 2 %.
+  e.set_dt(0.02 * ice.tau0());
+  e.check_time_step();
+  double t_in = -1, t_out = -1;
+  for (int s = 0; s < 200000; ++s) {
+    e.step();
+    const auto& p = e.particles();
+    const double dist = (p.x[p.local(1)] - p.x[p.local(0)]).norm();
+    if (t_in < 0 && dist < ice.D) t_in = e.time();
+    if (t_in >= 0 && dist >= ice.D) { t_out = e.time(); break; }
+  }
+  const auto& p = e.particles();
+  const double vrel = p.v[p.local(1)].x() - p.v[p.local(0)].x();
+  return {vrel / (2 * v0), t_out - t_in};
+}
+
+}  // namespace
+
+class Restitution : public ::testing::TestWithParam<double> {};
+
+TEST_P(Restitution, LinearSpringDashpotMatchesTheoryWithin2Percent) {
+  const double e_target = GetParam();
+  const auto r = impact(e_target);
+  EXPECT_NEAR(r.e, e_target, 0.02 * e_target) << "restitution";
+  test::Ice ice;
+  const double m_eff = 0.5 * ice.sphere_mass();
+  const double zeta = damping_ratio_from_restitution(e_target);
+  const double tc = kPi / (std::sqrt(ice.kn() / m_eff) * std::sqrt(1 - zeta * zeta));
+  EXPECT_NEAR(r.tc, tc, 0.02 * tc) << "contact duration";
+}
+
+TEST_P(Restitution, HertzMindlinMatchesTargetWithin2Percent) {
+  // Tsuji damping with beta(e) reproduces e for Hertz contacts (velocity independent).
+  const double e_target = GetParam();
+  const auto r = impact(e_target, ContactModel::HertzMindlin);
+  EXPECT_NEAR(r.e, e_target, 0.02 * e_target);
+}
+
+INSTANTIATE_TEST_SUITE_P(Impact, Restitution, ::testing::Values(0.1, 0.3, 0.5, 0.9));
+
+TEST(ContactLaw, DampingRatioRoundTrip) {
+  for (double e : {0.05, 0.1, 0.3, 0.5, 0.9, 0.99})
+    EXPECT_NEAR(restitution_from_damping_ratio(damping_ratio_from_restitution(e)), e, 1e-12);
+}
+
+TEST(ContactLaw, CoulombCapHoldsAndRewindsHistory) {
+  LinearContactParams p{1e6, 1e6, 0.0, 0.0, 0.3};
+  Vec3 xi = Vec3::Zero();
+  const Vec3 n = Vec3::UnitZ();
+  // Sliding tangentially for many steps: |Ft| must settle at mu Fn exactly.
+  ContactResult r{};
+  for (int s = 0; s < 100; ++s) r = linear_contact(p, 1e-3, n, 0.0, Vec3(1, 0, 0), 1.0, 1e-4, xi);
+  const double fn = 1e6 * 1e-3;
+  const Vec3 ft = r.force - r.force.dot(n) * n;
+  EXPECT_NEAR(ft.norm(), 0.3 * fn, 1e-9 * fn);
+  EXPECT_LT(ft.x(), 0.0);  // opposes sliding
+  EXPECT_NEAR(xi.norm() * p.kt, 0.3 * fn, 1e-9 * fn);
+}
+
+TEST(ContactLaw, ImpactFiguresPrinted) {
+  for (double e : {0.1, 0.3, 0.5, 0.9}) {
+    const auto r = impact(e);
+    test::Ice ice;
+    const double zeta = damping_ratio_from_restitution(e);
+    const double tc = kPi / (std::sqrt(ice.kn() / (0.5 * ice.sphere_mass())) * std::sqrt(1 - zeta * zeta));
+    std::printf("target e %.2f: measured e %.5f, t_c %.6e s vs theory %.6e s\n", e, r.e, r.tc, tc);
+    EXPECT_GT(r.tc, 0.0);
+  }
+}
