@@ -1,0 +1,158 @@
+// The rigid-block world: ice blocks as Bullet rigid boxes (double precision) with
+// gravity, exact box buoyancy, drag on the submerged part, block–block contact with
+// friction, and breakable freeze joints. Bullet stays behind a pimpl: no bt* type here.
+//
+// Step (one call of step(), sub-stepped at def.dt):
+//   1. water load (box_water.h (4)-(6)) and the caller's external forces/impulses are
+//      applied to every dynamic block;
+//   2. Bullet integrates one fixed step (semi-implicit Euler + sequential-impulse
+//      contacts, friction and joints);
+//   3. every intact freeze joint reads the force it applied (btJointFeedback, impulse/dt),
+//      splits it into normal (tension > 0) and shear parts relative to its normal and
+//      breaks when  tension/A > sigma_t  or  |shear|/A > tau_s.
+// Units: SI (m, kg, s, N, Pa).
+#pragma once
+
+#include "bonded/types.h"
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace hs::rigid {
+
+/// Handle to a block: slot index + generation (stale handles are detected).
+struct BlockId {
+  std::uint32_t index = UINT32_MAX;
+  std::uint32_t generation = 0;
+  bool valid() const { return index != UINT32_MAX; }
+  friend bool operator==(const BlockId&, const BlockId&) = default;
+};
+
+/// Handle to a freeze joint: slot index + generation.
+struct JointId {
+  std::uint32_t index = UINT32_MAX;
+  std::uint32_t generation = 0;
+  bool valid() const { return index != UINT32_MAX; }
+  friend bool operator==(const JointId&, const JointId&) = default;
+};
+
+struct RigidWorldDef {
+  Vec3 gravity{0.0, 0.0, -9.81};    ///< m/s^2
+  double dt = 1.0 / 240.0;          ///< fixed rigid sub-step, s
+  int solver_iterations = 20;       ///< sequential-impulse iterations per step
+
+  // Water (ignored when water = false: no buoyancy, no drag).
+  bool water = true;
+  double water_level = 0.0;         ///< z of the still water surface, m
+  double water_density = 1025.0;    ///< kg/m^3
+  /// Linear face-normal drag c_lin, Pa s/m (N s/m per m^2 of wetted face). It is the
+  /// heave damper: zeta_heave = c_lin / (2 sqrt(rho_w g rho_i h)) for a slab of
+  /// thickness h (0.22 for h = 0.6 m at the default).
+  double linear_drag = 1000.0;
+  double quadratic_drag_cd = 1.0;   ///< C_d on leading wetted faces
+  Vec3 water_current = Vec3::Zero(); ///< m/s (still water by default)
+
+  // Contact.
+  double friction = 0.3;            ///< ice–ice Coulomb coefficient
+  double restitution = 0.0;
+  /// Upper bound of the Bullet collision margin, m. The margin of a block is
+  /// min(collision_margin, 0.2 * smallest half extent), i.e. 0.02 m for a 0.2 m thick
+  /// block. btBoxShape keeps the margin inside its half extents, and box–box pairs use
+  /// the exact-box algorithm, so the margin never inflates a block.
+  double collision_margin = 0.02;
+
+  // Freeze joints.
+  double freeze_bond_strength = 50e3;        ///< tensile strength sigma_t, Pa
+  double freeze_bond_shear_strength = -1.0;  ///< tau_s, Pa; < 0 means = sigma_t
+
+  /// Allow Bullet to put resting blocks to sleep (off: floating blocks must respond
+  /// to the water at every step, and sleeping hurts determinism across scenes).
+  bool allow_sleep = false;
+};
+
+struct BlockDef {
+  Vec3 half_extents{0.5, 0.5, 0.5};  ///< m
+  Vec3 position = Vec3::Zero();      ///< centre, m
+  Quat orientation = Quat::Identity();
+  Vec3 velocity = Vec3::Zero();      ///< m/s
+  Vec3 angular_velocity = Vec3::Zero();  ///< rad/s, world
+  double density = 910.0;            ///< kg/m^3
+  bool fixed = false;                ///< static block (floor, wall); no water load
+  double friction = -1.0;            ///< < 0: RigidWorldDef::friction
+};
+
+/// A freeze joint between two touching blocks at `anchor` (world point on the common
+/// face), with `normal` (world unit vector, pointing from a to b) and bonded `area` m^2.
+struct FreezeJointDef {
+  BlockId a, b;
+  Vec3 anchor = Vec3::Zero();
+  Vec3 normal{0.0, 0.0, 1.0};
+  double area = 1.0;
+};
+
+/// Last measured load of a joint (force on b from the joint, split along the normal).
+struct JointLoad {
+  double tension = 0.0;  ///< N, > 0 pulls b towards a
+  double shear = 0.0;    ///< N, magnitude of the tangential part
+};
+
+class RigidWorld {
+ public:
+  explicit RigidWorld(const RigidWorldDef& def = {});
+  ~RigidWorld();
+  RigidWorld(const RigidWorld&) = delete;
+  RigidWorld& operator=(const RigidWorld&) = delete;
+
+  const RigidWorldDef& def() const;
+
+  BlockId add_block(const BlockDef& b);
+  /// Removes a block and its joints; its id becomes stale.
+  void remove_block(BlockId id);
+  bool alive(BlockId id) const;
+  std::size_t block_count() const;
+  /// Alive blocks in slot order (deterministic).
+  std::vector<BlockId> blocks() const;
+
+  /// Advances by `duration` in whole sub-steps of def.dt (at least one).
+  void step(double duration);
+  /// Advances by exactly one sub-step of def.dt.
+  void substep();
+  double time() const;
+  std::uint64_t step_count() const;
+
+  Vec3 position(BlockId id) const;
+  Quat orientation(BlockId id) const;
+  Vec3 velocity(BlockId id) const;
+  Vec3 angular_velocity(BlockId id) const;
+  Vec3 half_extents(BlockId id) const;
+  double mass(BlockId id) const;  ///< 0 for fixed blocks
+  bool fixed(BlockId id) const;
+  void set_velocity(BlockId id, const Vec3& v, const Vec3& w);
+  void set_pose(BlockId id, const Vec3& x, const Quat& q);
+
+  /// External force (N) at a world point, applied during every following sub-step
+  /// until clear_external_forces(); for loads held over a rigid step.
+  void add_force(BlockId id, const Vec3& f, const Vec3& point);
+  void clear_external_forces();
+  /// Impulse (N s) at a world point, applied once at the start of the next sub-step
+  /// (the bridge pours accumulated particle impulses in here).
+  void add_impulse(BlockId id, const Vec3& j, const Vec3& point);
+
+  /// Sum of 1/2 m v^2 + 1/2 w.I w over dynamic blocks, J.
+  double kinetic_energy() const;
+
+  JointId add_freeze_joint(const FreezeJointDef& j);
+  void remove_joint(JointId id);
+  bool joint_broken(JointId id) const;
+  JointLoad joint_load(JointId id) const;
+  /// Freeze joints broken since the world was made.
+  std::size_t broken_joint_count() const;
+  std::size_t joint_count() const;  ///< intact joints
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace hs::rigid

@@ -1,0 +1,123 @@
+// Freeze joints break at strength x area, in tension and in shear.
+#include "rigid/rigid_world.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+
+namespace hs::rigid {
+namespace {
+
+struct BreakResult {
+  double force_at_break = 0.0;  // applied force (N) in the step the joint broke
+  JointLoad load_at_break;
+  bool broke = false;
+};
+
+// Block a (fixed) and block b (dynamic), 1 m cubes side by side along x with a 5 mm gap
+// (so that no contact shares the load), joined at the gap centre over area 1 m^2.
+// b is pulled by a force ramping at `rate` N/s along `dir`, applied at the anchor when
+// `at_anchor` (no moment on the joint), else at b's centre.
+BreakResult pull_until_break(const RigidWorldDef& def, const Vec3& dir, bool at_anchor,
+                             double rate) {
+  RigidWorld w(def);
+  BlockDef a;
+  a.half_extents = Vec3(0.5, 0.5, 0.5);
+  a.fixed = true;
+  BlockDef b = a;
+  b.fixed = false;
+  b.density = 910.0;
+  b.position = Vec3(1.005, 0, 0);
+  const BlockId ia = w.add_block(a), ib = w.add_block(b);
+  const Vec3 anchor(0.5025, 0, 0);
+  const JointId j = w.add_freeze_joint({ia, ib, anchor, Vec3::UnitX(), 1.0});
+  BreakResult r;
+  while (w.time() < 10.0) {
+    const double f = rate * (w.time() + def.dt);
+    w.clear_external_forces();
+    w.add_force(ib, f * dir, at_anchor ? anchor : w.position(ib));
+    w.substep();
+    if (w.joint_broken(j)) {
+      r.broke = true;
+      r.force_at_break = f;
+      r.load_at_break = w.joint_load(j);
+      break;
+    }
+  }
+  EXPECT_EQ(w.broken_joint_count(), r.broke ? 1u : 0u);
+  EXPECT_EQ(w.joint_count(), r.broke ? 0u : 1u);
+  return r;
+}
+
+RigidWorldDef dry_world() {
+  RigidWorldDef def;
+  def.water = false;
+  def.gravity = Vec3::Zero();
+  def.freeze_bond_strength = 50e3;
+  def.freeze_bond_shear_strength = 30e3;
+  return def;
+}
+
+TEST(RigidFreezeJoint, BreaksInTensionAtStrength) {
+  const RigidWorldDef def = dry_world();
+  const BreakResult r = pull_until_break(def, Vec3::UnitX(), false, 20e3);  // 2.5 s ramp
+  ASSERT_TRUE(r.broke);
+  const double ratio = r.force_at_break / (def.freeze_bond_strength * 1.0);
+  EXPECT_NEAR(ratio, 1.0, 0.05);
+  EXPECT_LT(r.load_at_break.shear, 0.01 * r.load_at_break.tension);
+  std::printf("[ rigid ] tension break: F = %.1f N, strength x area = %.1f N, ratio %.4f\n",
+              r.force_at_break, def.freeze_bond_strength, ratio);
+}
+
+TEST(RigidFreezeJoint, BreaksInShearAtShearStrength) {
+  const RigidWorldDef def = dry_world();
+  const BreakResult r = pull_until_break(def, Vec3::UnitY(), true, 12e3);
+  ASSERT_TRUE(r.broke);
+  const double ratio = r.force_at_break / (def.freeze_bond_shear_strength * 1.0);
+  EXPECT_NEAR(ratio, 1.0, 0.05);
+  EXPECT_LT(std::abs(r.load_at_break.tension), 0.01 * r.load_at_break.shear);
+  std::printf("[ rigid ] shear break: F = %.1f N, shear strength x area = %.1f N, ratio %.4f\n",
+              r.force_at_break, def.freeze_bond_shear_strength, ratio);
+}
+
+TEST(RigidFreezeJoint, HoldsBelowStrengthAndUnderCompression) {
+  // Held at 80 % of the strength for 2 s: the joint must not break.
+  RigidWorldDef def = dry_world();
+  RigidWorld w(def);
+  BlockDef a;
+  a.half_extents = Vec3(0.5, 0.5, 0.5);
+  a.fixed = true;
+  BlockDef b = a;
+  b.fixed = false;
+  b.position = Vec3(1.0, 0, 0);  // touching
+  const BlockId ia = w.add_block(a), ib = w.add_block(b);
+  const JointId j = w.add_freeze_joint({ia, ib, Vec3(0.5, 0, 0), Vec3::UnitX(), 1.0});
+  w.add_force(ib, Vec3(0.8 * def.freeze_bond_strength, 0, 0), w.position(ib));
+  w.step(2.0);
+  EXPECT_FALSE(w.joint_broken(j));
+  EXPECT_NEAR(w.joint_load(j).tension / (0.8 * def.freeze_bond_strength), 1.0, 0.02);
+  // Compression (5x the strength) never breaks a joint; contact keeps the blocks apart.
+  w.clear_external_forces();
+  w.add_force(ib, Vec3(-5.0 * def.freeze_bond_strength, 0, 0), w.position(ib));
+  w.step(1.0);
+  EXPECT_FALSE(w.joint_broken(j));
+  EXPECT_LT(w.position(ib).x(), 1.0 + 1e-3);
+  EXPECT_GT(w.position(ib).x(), 1.0 - 2e-2);
+}
+
+TEST(RigidFreezeJoint, RemovedWithItsBlock) {
+  RigidWorld w(dry_world());
+  const BlockId a = w.add_block(BlockDef{});
+  BlockDef bd;
+  bd.position = Vec3(1, 0, 0);
+  const BlockId b = w.add_block(bd);
+  const JointId j = w.add_freeze_joint({a, b, Vec3(0.5, 0, 0), Vec3::UnitX(), 1.0});
+  EXPECT_EQ(w.joint_count(), 1u);
+  w.remove_block(b);
+  EXPECT_EQ(w.joint_count(), 0u);
+  EXPECT_THROW(w.joint_broken(j), std::out_of_range);
+  w.step(0.1);
+}
+
+}  // namespace
+}  // namespace hs::rigid
