@@ -44,6 +44,17 @@ struct ParallelBondParams {
   double radius = 0;            ///< bond radius R, m
   double sigma_c = INFINITY;    ///< tensile strength, Pa
   double tau_c = INFINITY;      ///< shear strength, Pa
+  // Stress per unit deformation, derived by finalize(): k_n/A, k_b R/I, k_s/A, k_t R/J.
+  double sigma_per_stretch = 0, sigma_per_bend = 0, tau_per_slide = 0, tau_per_twist = 0;
+
+  /// Derives the stress factors from the stiffnesses and radius; call after editing them.
+  ParallelBondParams& finalize() {
+    sigma_per_stretch = kn / area();
+    sigma_per_bend = kb * radius / inertia();
+    tau_per_slide = ks / area();
+    tau_per_twist = kt * radius / polar();
+    return *this;
+  }
 
   double area() const { return kPi * radius * radius; }
   double inertia() const { return 0.25 * kPi * radius * radius * radius * radius; }
@@ -68,6 +79,7 @@ struct ParallelBondParams {
     p.gamma_t = 2.0 * zeta * std::sqrt(inertia_eff * p.kt);
     p.sigma_c = sigma_c;
     p.tau_c = tau_c;
+    p.finalize();
     return p;
   }
 };
@@ -115,14 +127,23 @@ inline Vec3 rotation_vector(const Quat& w_in) {
   Quat w = w_in;
   if (w.w() < 0.0) w.coeffs() = -w.coeffs();
   const Vec3 v = w.vec();
-  const double s = v.norm();
-  const double k = s > 1e-12 ? 2.0 * std::atan2(s, w.w()) / s : 2.0 / w.w();
-  return k * v;
+  const double s2 = v.squaredNorm();
+  const double c = w.w();
+  // Bonds break long before |theta| reaches 1e-2 rad in ice, so the series is the hot
+  // path: atan(t)/t = 1 - t^2/3 + t^4/5 - t^6/7 with t = s/c, error < t^8/9 < 1e-17.
+  const double ic = 1.0 / c;
+  const double t2 = s2 * ic * ic;
+  constexpr double k3 = 1.0 / 3.0, k5 = 1.0 / 5.0, k7 = 1.0 / 7.0;
+  if (t2 < 1e-4) return (2.0 * ic) * (1.0 - t2 * (k3 - t2 * (k5 - t2 * k7))) * v;
+  const double s = std::sqrt(s2);
+  return (2.0 * std::atan2(s, c) / s) * v;
 }
 
-/// c2(phi) of the SO(3) log-map Jacobian; series below 1e-3 rad.
-inline double log_jacobian_c2(double phi) {
-  if (phi < 1e-3) return 1.0 / 12.0 + phi * phi / 720.0;
+/// c2(phi) of the SO(3) log-map Jacobian from phi^2; series below 1e-3 rad.
+inline double log_jacobian_c2(double phi2) {
+  constexpr double k12 = 1.0 / 12.0, k720 = 1.0 / 720.0;
+  if (phi2 < 1e-6) return k12 + phi2 * k720;
+  const double phi = std::sqrt(phi2);
   const double h = 0.5 * phi;
   return 1.0 / (phi * phi) - std::cos(h) / (2.0 * phi * std::sin(h));
 }
@@ -133,9 +154,8 @@ inline BondResult parallel_bond(const ParallelBondParams& p, const BondRef& ref,
   const Vec3 ai = k.qi * ref.ri;
   const Vec3 aj = k.qj * ref.rj;
   const Vec3 d = k.xj - k.xi;
-  const double L = d.norm();
-  const Vec3 n = d / L;
-  const double invL = 1.0 / L;
+  const double invL = 1.0 / d.norm();
+  const Vec3 n = d * invL;
 
   // --- translation ---
   const Vec3 u = d + aj - ai;
@@ -149,7 +169,7 @@ inline BondResult parallel_bond(const ParallelBondParams& p, const BondRef& ref,
   const double thn = th.dot(n);
   const Vec3 ths = th - thn * n;
   const Vec3 g = p.kb * th + (p.kt - p.kb) * thn * n;
-  const double c2 = log_jacobian_c2(th.norm());
+  const double c2 = log_jacobian_c2(th.squaredNorm());
   const Vec3 txg = th.cross(g);
   const Vec3 txtxg = th.cross(txg);
 
@@ -176,10 +196,9 @@ inline BondResult parallel_bond(const ParallelBondParams& p, const BondRef& ref,
     r.tj += mid_j.cross(fd) + md;
   }
 
-  const double R = p.radius;
-  const double A = p.area();
-  r.sigma = p.kn * un / A + p.kb * ths.norm() * R / p.inertia();
-  r.tau = p.ks * us.norm() / A + p.kt * std::abs(thn) * R / p.polar();
+  // sigma = k_n u_n / A + k_b |theta_s| R / I,  tau = k_s |u_s| / A + k_t |theta_n| R / J
+  r.sigma = p.sigma_per_stretch * un + p.sigma_per_bend * ths.norm();
+  r.tau = p.tau_per_slide * us.norm() + p.tau_per_twist * std::abs(thn);
   r.energy = 0.5 * (p.kn * un * un + p.ks * us.squaredNorm() + p.kb * ths.squaredNorm() +
                     p.kt * thn * thn);
   return r;

@@ -16,7 +16,7 @@ ParallelBondParams anisotropic_params() {
   // k_s != k_n and k_t != k_b on purpose, to exercise the n-dependent terms.
   ParallelBondParams p = ParallelBondParams::from_stiffness(1.3e8, 0.6e8, 0.25, INFINITY, INFINITY, 0.0, 1.0, 1.0);
   p.kt *= 0.7;
-  return p;
+  return p.finalize();
 }
 
 Quat small_rotation(const Vec3& phi) {
