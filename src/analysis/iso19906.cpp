@@ -1,0 +1,246 @@
+// ISO 19906 cone loads; equations and sources in iso19906.h.
+#include "analysis/iso19906.h"
+
+#include "common/did_you_mean.h"
+#include "common/error.h"
+
+#include <array>
+#include <cmath>
+#include <numbers>
+#include <sstream>
+#include <utility>
+
+namespace hs::analysis {
+namespace {
+
+using Member = double IsoInputs::*;
+
+/// JSON key <-> field, in declaration order; the one list that keeps names in step.
+constexpr std::array<std::pair<const char*, Member>, 17> kFields{{
+    {"thickness", &IsoInputs::thickness},
+    {"waterline_diameter", &IsoInputs::waterline_diameter},
+    {"flexural_strength", &IsoInputs::flexural_strength},
+    {"youngs_modulus", &IsoInputs::youngs_modulus},
+    {"poisson_ratio", &IsoInputs::poisson_ratio},
+    {"cone_angle_deg", &IsoInputs::cone_angle_deg},
+    {"friction_ice_structure", &IsoInputs::friction_ice_structure},
+    {"friction_ice_ice", &IsoInputs::friction_ice_ice},
+    {"ice_density", &IsoInputs::ice_density},
+    {"water_density", &IsoInputs::water_density},
+    {"gravity", &IsoInputs::gravity},
+    {"rubble_height", &IsoInputs::rubble_height},
+    {"rubble_porosity", &IsoInputs::rubble_porosity},
+    {"rubble_cohesion", &IsoInputs::rubble_cohesion},
+    {"rubble_slope_deg", &IsoInputs::rubble_slope_deg},
+    {"rubble_friction_angle_deg", &IsoInputs::rubble_friction_angle_deg},
+    {"keel_depth", &IsoInputs::keel_depth},
+}};
+
+constexpr double kDeg = std::numbers::pi / 180.0;
+
+/// Shortest text that reads back as the same double.
+std::string num(double v) {
+  std::string text;
+  for (int digits = 6; digits <= 17; ++digits) {
+    std::ostringstream out;
+    out.precision(digits);
+    out << v;
+    text = out.str();
+    double back = 0.0;
+    std::istringstream(text) >> back;
+    if (back == v) break;
+  }
+  return text;
+}
+
+/// RFC 6901 escaping of one JSON Pointer token.
+std::string pointer_token(const std::string& key) {
+  std::string out;
+  for (char ch : key) {
+    if (ch == '~') out += "~0";
+    else if (ch == '/') out += "~1";
+    else out += ch;
+  }
+  return out;
+}
+
+class Checker {
+ public:
+  explicit Checker(const std::string& base) : base_(base) {}
+
+  [[noreturn]] void fail(const char* key, double value, const std::string& allowed) const {
+    throw InputError(base_ + "/" + key, "is " + num(value) + "; " + allowed);
+  }
+  void finite(const char* key, double v) const {
+    if (!std::isfinite(v)) fail(key, v, "must be a finite number");
+  }
+  void positive(const char* key, double v, const char* unit) const {
+    finite(key, v);
+    if (!(v > 0.0)) fail(key, v, std::string("must be > 0 ") + unit);
+  }
+  void non_negative(const char* key, double v, const char* unit) const {
+    finite(key, v);
+    if (!(v >= 0.0)) fail(key, v, std::string("must be >= 0 ") + unit);
+  }
+
+ private:
+  std::string base_;
+};
+
+}  // namespace
+
+const std::vector<std::string>& iso_input_keys() {
+  static const std::vector<std::string> keys = [] {
+    std::vector<std::string> k;
+    for (const auto& f : kFields) k.emplace_back(f.first);
+    return k;
+  }();
+  return keys;
+}
+
+void validate_iso_inputs(const IsoInputs& in, const std::string& base_path) {
+  const Checker c(base_path);
+  for (const auto& [key, member] : kFields) c.finite(key, in.*member);
+
+  c.positive("thickness", in.thickness, "(m)");
+  c.positive("waterline_diameter", in.waterline_diameter, "(m)");
+  c.positive("flexural_strength", in.flexural_strength, "(Pa; sea ice is 0.3e6-0.7e6 Pa)");
+  c.positive("youngs_modulus", in.youngs_modulus, "(Pa; sea ice is 1e9-9e9 Pa)");
+  if (!(in.poisson_ratio >= 0.0 && in.poisson_ratio < 0.5))
+    c.fail("poisson_ratio", in.poisson_ratio, "must be in [0, 0.5) (sea ice: 0.3)");
+  if (!(in.cone_angle_deg > 0.0 && in.cone_angle_deg < 90.0))
+    c.fail("cone_angle_deg", in.cone_angle_deg,
+           "must be in (0, 90) degrees, measured from horizontal");
+  c.non_negative("friction_ice_structure", in.friction_ice_structure, "(friction coefficient)");
+  c.non_negative("friction_ice_ice", in.friction_ice_ice, "(friction coefficient)");
+  c.positive("ice_density", in.ice_density, "(kg/m^3)");
+  c.positive("water_density", in.water_density, "(kg/m^3)");
+  if (!(in.ice_density < in.water_density))
+    c.fail("ice_density", in.ice_density,
+           "must be less than water_density (" + num(in.water_density) + " kg/m^3): the ice must float");
+  c.positive("gravity", in.gravity, "(m/s^2)");
+  c.non_negative("rubble_height", in.rubble_height, "(m)");
+  if (!(in.rubble_porosity >= 0.0 && in.rubble_porosity < 1.0))
+    c.fail("rubble_porosity", in.rubble_porosity, "must be in [0, 1) (typically 0.1-0.4)");
+  c.non_negative("rubble_cohesion", in.rubble_cohesion, "(Pa)");
+  if (!(in.rubble_slope_deg > 0.0 && in.rubble_slope_deg < in.cone_angle_deg))
+    c.fail("rubble_slope_deg", in.rubble_slope_deg,
+           "must be in (0, cone_angle_deg = " + num(in.cone_angle_deg) +
+               ") degrees: the rubble pile is flatter than the cone");
+  if (!(in.rubble_friction_angle_deg >= 0.0 && in.rubble_friction_angle_deg < 90.0))
+    c.fail("rubble_friction_angle_deg", in.rubble_friction_angle_deg, "must be in [0, 90) degrees");
+  c.non_negative("keel_depth", in.keel_depth, "(m; 0 = no keel)");
+
+  const double a = in.cone_angle_deg * kDeg;
+  const double mu = in.friction_ice_structure;
+  if (!(std::cos(a) - mu * std::sin(a) > 0.0))
+    c.fail("friction_ice_structure", mu,
+           "the cone is self-locking: cos(a) - mu sin(a) must be > 0, i.e. mu < cot(a) = " +
+               num(1.0 / std::tan(a)) + " for cone_angle_deg = " + num(in.cone_angle_deg) +
+               "; the ice cannot ride up such a cone and the ISO formula does not apply");
+  if (!(std::sin(a) - mu * std::cos(a) > 0.0))
+    c.fail("friction_ice_structure", mu,
+           "sin(a) - mu cos(a) must be > 0, i.e. mu < tan(a) = " + num(std::tan(a)) +
+               " for cone_angle_deg = " + num(in.cone_angle_deg) +
+               ": blocks at the top of the cone would not turn (H_T undefined)");
+
+  // F_H denominator: 1 - H_B/(sigma_f l h) = 1 - 0.68 xi (rho_w g h / E)^(1/4).
+  const double xi = (std::sin(a) + mu * std::cos(a)) / (std::cos(a) - mu * std::sin(a));
+  const double ratio = 0.68 * xi *
+      std::pow(in.water_density * in.gravity * in.thickness / in.youngs_modulus, 0.25);
+  if (!(1.0 - ratio > 0.0))
+    c.fail("cone_angle_deg", in.cone_angle_deg,
+           "the Croasdale-Cammaert denominator 1 - H_B/(sigma_f l h) = 1 - 0.68 xi "
+           "(rho_w g h/E)^(1/4) = " + num(1.0 - ratio) +
+               " must be > 0: use a flatter cone, lower friction_ice_structure, thinner ice or "
+               "a larger youngs_modulus");
+}
+
+IsoResult compute_iso(const IsoInputs& in) {
+  validate_iso_inputs(in);
+  using std::cos;
+  using std::pow;
+  using std::sin;
+  using std::tan;
+  constexpr double pi = std::numbers::pi;
+
+  const double h = in.thickness, w = in.waterline_diameter;
+  const double sigma_f = in.flexural_strength, E = in.youngs_modulus, nu = in.poisson_ratio;
+  const double a = in.cone_angle_deg * kDeg, th = in.rubble_slope_deg * kDeg;
+  const double phi = in.rubble_friction_angle_deg * kDeg;
+  const double mu = in.friction_ice_structure, mu_i = in.friction_ice_ice;
+  const double rho_i = in.ice_density, rho_w = in.water_density, g = in.gravity;
+  const double h_r = in.rubble_height, e = in.rubble_porosity, c = in.rubble_cohesion;
+  const double h_k = in.keel_depth;
+
+  const double cot_a = 1.0 / tan(a), cot_th = 1.0 / tan(th);
+  const double slope_factor = 1.0 - tan(th) / tan(a);   // (1 - tan th / tan a)
+  const double gamma_r = rho_i * g * (1.0 - e);          // rubble weight density, N/m^3
+
+  IsoResult r;
+  r.xi = (sin(a) + mu * cos(a)) / (cos(a) - mu * sin(a));
+  r.L_c = pow(E * h * h * h / (12.0 * rho_w * g * (1.0 - nu * nu)), 0.25);
+  r.l = w + pi * pi * r.L_c / 4.0;
+  r.H_B = 0.68 * r.xi * sigma_f * pow(rho_w * g * pow(h, 5) / E, 0.25) * r.l;
+  r.H_P = w * h_r * h_r * mu_i * gamma_r * slope_factor * slope_factor / (2.0 * tan(th));
+  r.P = 0.5 * mu_i * (mu_i + mu) * gamma_r * h_r * h_r * sin(a) * (cot_th - cot_a) * slope_factor +
+        0.5 * (mu_i + mu) * gamma_r * h_r * h_r * cos(a) * cot_a * slope_factor +
+        h_r * h * rho_i * g * (sin(a) + mu * cos(a)) / sin(a);
+  r.H_R = w * r.P / (cos(a) - mu * sin(a));
+  r.H_L = r.xi * w * h_r * slope_factor *
+          (0.5 * h_r * gamma_r * (cot_th - cot_a + tan(phi) * slope_factor) + c);
+  r.H_T = 1.5 * w * h * h * rho_i * g * cos(a) / (sin(a) - mu * cos(a));
+  r.F_H = (r.H_B + r.H_P + r.H_R + r.H_L + r.H_T) / (1.0 - r.H_B / (sigma_f * r.l * h));
+
+  const double mu_phi = tan(pi / 4.0 + phi / 2.0);
+  const double gamma_e = (1.0 - e) * (rho_w - rho_i) * g;  // buoyant weight density of the keel
+  r.F_K = h_k > 0.0
+              ? mu_phi * h_k * w * (h_k * mu_phi * gamma_e / 2.0 + 2.0 * c) * (1.0 + h_k / (6.0 * w))
+              : 0.0;
+  r.F_total = r.F_H + r.F_K;
+  return r;
+}
+
+IsoInputs iso_inputs_from_json(const nlohmann::json& j, const std::string& base_path) {
+  if (!j.is_object())
+    throw InputError(base_path, std::string("expected a JSON object of ISO 19906 inputs, got ") +
+                                    j.type_name());
+  IsoInputs in;
+  const auto& keys = iso_input_keys();
+  for (const auto& [key, value] : j.items()) {
+    const std::string path = base_path + "/" + pointer_token(key);
+    Member member = nullptr;
+    for (const auto& f : kFields)
+      if (key == f.first) member = f.second;
+    if (member == nullptr) {
+      const std::string hint = did_you_mean(key, keys);
+      std::string msg = "unknown key \"" + key + "\"" + hint;
+      if (hint.empty()) {
+        msg += "; allowed keys:";
+        for (const auto& k : keys) msg += " " + k;
+      }
+      throw InputError(path, msg);
+    }
+    if (!value.is_number())
+      throw InputError(path, std::string("must be a number (SI units), got ") + value.type_name());
+    in.*member = value.get<double>();
+  }
+  validate_iso_inputs(in, base_path);
+  return in;
+}
+
+nlohmann::json iso_inputs_to_json(const IsoInputs& in) {
+  nlohmann::json j = nlohmann::json::object();
+  for (const auto& [key, member] : kFields) j[key] = in.*member;
+  return j;
+}
+
+nlohmann::json iso_to_json(const IsoResult& r) {
+  return nlohmann::json{
+      {"H_B", r.H_B}, {"H_P", r.H_P}, {"H_R", r.H_R}, {"H_L", r.H_L},
+      {"H_T", r.H_T}, {"F_H", r.F_H}, {"F_K", r.F_K}, {"F_total", r.F_total},
+      {"xi", r.xi},   {"L_c", r.L_c}, {"l", r.l},     {"P", r.P},
+  };
+}
+
+}  // namespace hs::analysis
