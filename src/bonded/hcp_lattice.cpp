@@ -24,10 +24,10 @@ std::vector<Vec3> fill(double xmin, double xmax, double ymin, double ymax, doubl
     const double z = z0 + c * k;
     const double sx = b_layer ? 0.5 * D : 0.0;
     const double sy = b_layer ? row / 3.0 : 0.0;
-    for (int j = 0; j < nrows; ++j) {
+    for (int j = -1; j < nrows; ++j) {  // from -1: shifted rows/layers may start earlier
       const double y = ymin + 0.5 * D + sy + row * j;
-      const double xs = (j % 2 == 1) ? 0.5 * D : 0.0;
-      for (int i = 0; i < ncols; ++i) {
+      const double xs = (j & 1) ? 0.5 * D : 0.0;
+      for (int i = -1; i < ncols; ++i) {
         const double x = xmin + 0.5 * D + sx + xs + D * i;
         const Vec3 p(x, y, z);
         if (keep(p)) out.push_back(pose.position + R * p);

@@ -1,0 +1,168 @@
+// HCP lattice geometry, neighbour-list completeness and the water law.
+#include "fixtures.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+using namespace hs;
+using namespace hs::bonded;
+
+namespace {
+
+// Brute-force count of pairs closer than `lim`.
+std::size_t pairs_within(const std::vector<Vec3>& x, double lim, std::vector<int>* coordination = nullptr) {
+  std::size_t n = 0;
+  if (coordination) coordination->assign(x.size(), 0);
+  for (std::size_t i = 0; i < x.size(); ++i)
+    for (std::size_t j = i + 1; j < x.size(); ++j)
+      if ((x[i] - x[j]).norm() < lim) {
+        ++n;
+        if (coordination) { ++(*coordination)[i]; ++(*coordination)[j]; }
+      }
+  return n;
+}
+
+}  // namespace
+
+TEST(HcpLattice, SpacingIsExactlyDAndBulkHas12Neighbours) {
+  const double D = 0.5;
+  // Any orientation: the lattice is rigidly rotated with the box.
+  const Quat q(Eigen::AngleAxisd(0.7, Vec3(1, 2, 3).normalized()));
+  const auto x = hcp_fill_box(Vec3(2.0, 2.0, 2.0), Pose{Vec3(1, -2, 3), q}, D);
+  double dmin = INFINITY;
+  for (std::size_t i = 0; i < x.size(); ++i)
+    for (std::size_t j = i + 1; j < x.size(); ++j) dmin = std::min(dmin, (x[i] - x[j]).norm());
+  EXPECT_NEAR(dmin, D, 1e-12);
+  std::vector<int> coord;
+  pairs_within(x, D * (1 + 1e-9), &coord);
+  // A particle at least D from every face of the box is in the bulk: exactly 12 touching.
+  const Mat3 R = q.toRotationMatrix();
+  int bulk = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    const Vec3 local = R.transpose() * (x[i] - Vec3(1, -2, 3));
+    if ((local.cwiseAbs().array() < 2.0 - 1.01 * D).all()) {
+      ++bulk;
+      EXPECT_EQ(coord[i], 12) << "particle " << i;
+    }
+  }
+  EXPECT_GT(bulk, 20);
+  // Next-nearest neighbours are at D sqrt(2) or farther: nothing between D and 1.4 D.
+  EXPECT_EQ(pairs_within(x, 1.4 * D), pairs_within(x, D * (1 + 1e-9)));
+}
+
+TEST(HcpLattice, CountMatchesVolumeOverCellVolume) {
+  const double D = 0.25;
+  const double h = 8 * hcp_layer_spacing(D);  // exactly 8 layers
+  const auto x = hcp_fill_box(Vec3(5.0, 4.0, 0.5 * h), Pose{}, D);
+  const double expected = 10.0 * 8.0 * h / hcp_cell_volume(D);
+  // Boundary rows: within one row/column per side of the ideal count (~2 %).
+  EXPECT_NEAR(static_cast<double>(x.size()), expected, 0.03 * expected);
+  double zmin = INFINITY, zmax = -INFINITY;
+  for (const auto& p : x) { zmin = std::min(zmin, p.z()); zmax = std::max(zmax, p.z()); }
+  EXPECT_NEAR(zmax - zmin, 7 * hcp_layer_spacing(D), 1e-12);
+}
+
+TEST(HcpLattice, PrismFillsOnlyThePolygon) {
+  const double D = 0.5;
+  const std::vector<Eigen::Vector2d> tri = {{0, 0}, {6, 0}, {0, 6}};
+  const auto x = hcp_fill_prism(tri, 4 * hcp_layer_spacing(D), Pose{}, D);
+  ASSERT_FALSE(x.empty());
+  for (const auto& p : x) {
+    EXPECT_GE(p.x(), 0.0);
+    EXPECT_GE(p.y(), 0.0);
+    EXPECT_LE(p.x() + p.y(), 6.0 + 1e-9);
+  }
+  const double expected = 18.0 * 4 * hcp_layer_spacing(D) / hcp_cell_volume(D);
+  EXPECT_NEAR(static_cast<double>(x.size()), expected, 0.25 * expected);  // coarse: 36 cells per layer
+}
+
+TEST(NeighbourList, FindsEveryContactAndRebuildsOnlyAfterHalfSkin) {
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  d.skin = 0.05;
+  Engine e(d);
+  std::mt19937_64 rng(1);
+  std::uniform_real_distribution<double> u(0.0, 6.0), v(-1.0, 1.0);
+  std::vector<Vec3> placed;
+  while (placed.size() < 400) {  // random non-overlapping gas
+    const Vec3 c(u(rng), u(rng), u(rng));
+    bool ok = true;
+    for (const auto& p : placed) ok &= (p - c).norm() > ice.D;
+    if (!ok) continue;
+    placed.push_back(c);
+    auto p = test::sphere_at(ice, c);
+    p.v = 3.0 * Vec3(v(rng), v(rng), v(rng));
+    e.add_particle(p);
+  }
+  // Positions (by global id) at the last rebuild: a rebuild is due exactly when some
+  // particle has moved more than half the skin since then.
+  auto by_gid = [&]() {
+    const auto& p = e.particles();
+    std::vector<Vec3> out(p.size());
+    for (std::size_t i = 0; i < p.size(); ++i) out[p.gid[i]] = p.x[i];
+    return out;
+  };
+  std::vector<Vec3> at_rebuild = by_gid();  // the first list is built at the start of step 1
+  e.step();
+  std::uint64_t rebuilds = 1;
+  ASSERT_EQ(e.stats().neighbor_rebuilds, 1u);
+  for (int s = 0; s < 2000; ++s) {
+    e.step();
+    const auto& p = e.particles();
+    // Every touching pair must be in the list (checked against brute force).
+    std::size_t touching_listed = 0;
+    for (const auto& c : e.contact_pairs()) touching_listed += (p.x[c.i] - p.x[c.j]).norm() < ice.D;
+    ASSERT_EQ(touching_listed, pairs_within(p.x, ice.D)) << "step " << s;
+    const auto now = by_gid();
+    double moved = 0;
+    for (std::size_t g = 0; g < now.size(); ++g) moved = std::max(moved, (now[g] - at_rebuild[g]).norm());
+    if (e.stats().neighbor_rebuilds != rebuilds) {
+      EXPECT_GT(moved, 0.5 * d.skin) << "rebuilt although nobody moved half the skin, step " << s;
+      at_rebuild = now;
+      rebuilds = e.stats().neighbor_rebuilds;
+    } else {
+      EXPECT_LE(moved, 0.5 * d.skin) << "no rebuild although a particle moved half the skin, step " << s;
+    }
+  }
+  EXPECT_GT(e.stats().neighbor_rebuilds, 3u);
+  EXPECT_LT(e.stats().neighbor_rebuilds, 400u) << "rebuilding far more often than the skin requires";
+}
+
+TEST(Water, SphereBuoyancyAndQuadraticDragGiveTerminalVelocity) {
+  // A sphere denser than water sinks to v_t = sqrt(2 (m - rho_w V) g / (rho_w C_d pi r^2)).
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  d.gravity = Vec3(0, 0, -9.81);
+  d.water.enabled = true;
+  d.water.model = BuoyancyModel::Sphere;
+  d.water.drag_coefficient = 0.5;
+  Engine e(d);
+  auto p = test::sphere_at(ice, Vec3(0, 0, -2.0));
+  const double V = kPi * ice.D * ice.D * ice.D / 6.0;
+  p.mass = 2000.0 * V;  // denser than water
+  p.buoyant_volume = V;
+  e.add_particle(p);
+  e.set_dt(1e-3);
+  e.run(20000);
+  const double r = 0.5 * ice.D;
+  const double vt = std::sqrt(2.0 * (2000.0 - 1025.0) * V * 9.81 / (1025.0 * 0.5 * kPi * r * r));
+  EXPECT_NEAR(-e.particles().v[0].z(), vt, 1e-6 * vt);
+}
+
+TEST(Water, ColumnBuoyancyIsLinearInDraftAndMatchesSubmergedVolume) {
+  WaterParams w;
+  w.enabled = true;
+  const double r = 0.25, hc = 2 * r * std::sqrt(2.0 / 3.0);
+  EXPECT_DOUBLE_EQ(submerged_fraction(w, -1.0, r), 1.0);
+  EXPECT_DOUBLE_EQ(submerged_fraction(w, 1.0, r), 0.0);
+  EXPECT_NEAR(submerged_fraction(w, 0.0, r), 0.5, 1e-15);
+  EXPECT_NEAR(submerged_fraction(w, 0.25 * hc, r), 0.25, 1e-15);
+  // Buoyancy potential is the negative integral of the buoyant force.
+  const double g = 9.81, V = 0.1;
+  for (double z : {-0.3, -0.1, 0.0, 0.05, 0.15, 0.4}) {
+    const double h = 1e-6;
+    const double f_num = -(buoyancy_potential(w, g, z + h, r, V) - buoyancy_potential(w, g, z - h, r, V)) / (2 * h);
+    EXPECT_NEAR(f_num, w.density * g * V * submerged_fraction(w, z, r), 1e-5) << z;
+  }
+}
