@@ -151,6 +151,22 @@ int Engine::add_wall(const PlaneWall& w) {
   return static_cast<int>(walls_.size()) - 1;
 }
 
+int Engine::add_mesh_wall(MeshWallDef def) {
+  double rmax = 0.0;
+  for (std::size_t i = 0; i < ps_.size(); ++i) rmax = std::max(rmax, ps_.radius[i]);
+  MeshWall w;
+  w.grid = std::make_unique<mesh::MeshGrid>(def.mesh, rmax > 0.0 ? rmax : 0.25);
+  w.position = def.position;
+  w.load.part_force.assign(std::max<std::size_t>(1, def.mesh.part_names.size()), Vec3::Zero());
+  w.load.part_moment = w.load.part_force;
+  def.mesh = mesh::TriMesh{};  // the grid keeps its own copy
+  def.mesh.part_names = w.grid->mesh().part_names;
+  w.def = std::move(def);
+  meshes_.push_back(std::move(w));
+  forces_valid_ = false;
+  return static_cast<int>(meshes_.size()) - 1;
+}
+
 // ---------------------------------------------------------------- time step
 
 double Engine::eq2_time_step() const {
@@ -253,6 +269,12 @@ void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint
     b.i = new_of_old[b.i];
     b.j = new_of_old[b.j];
   }
+  // Walk bonds in memory order of their particles (cache locality). The order is a
+  // function of the positions only, so runs stay deterministic.
+  std::sort(bonds_.begin(), bonds_.end(), [](const Bond& a, const Bond& b) {
+    return std::min(a.i, a.j) != std::min(b.i, b.j) ? std::min(a.i, a.j) < std::min(b.i, b.j)
+                                                    : std::max(a.i, a.j) < std::max(b.i, b.j);
+  });
   for (auto& p : pairs_) {
     p.i = new_of_old[p.i];
     p.j = new_of_old[p.j];
@@ -441,6 +463,69 @@ void Engine::wall_forces() {
   }
 }
 
+void Engine::mesh_forces() {
+  const std::size_t n = ps_.owned();
+  double rmax = 0.0;
+  for (std::size_t i = 0; i < n; ++i) rmax = std::max(rmax, ps_.radius[i]);
+  for (auto& m : meshes_) {
+    MeshWallLoad& load = m.load;
+    load.force.setZero();
+    load.moment.setZero();
+    for (auto& v : load.part_force) v.setZero();
+    for (auto& v : load.part_moment) v.setZero();
+    load.contacts = 0;
+    m.next_history.clear();
+    const Vec3 lo = m.grid->bounds().lo + m.position - Vec3::Constant(rmax);
+    const Vec3 hi = m.grid->bounds().hi + m.position + Vec3::Constant(rmax);
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3& x = ps_.x[i];
+      if ((x.array() < lo.array()).any() || (x.array() > hi.array()).any()) continue;
+      if (ps_.inv_mass[i] == 0.0) continue;
+      const double r = ps_.radius[i];
+      if (m.grid->query(x - m.position, r, mesh_contacts_, mesh_scratch_) == 0) continue;
+      for (const auto& c : mesh_contacts_) {
+        const double delta = c.overlap;
+        const Vec3& nrm = c.normal;
+        const Vec3 a = -(r - 0.5 * delta) * nrm;
+        const Vec3 vrel = ps_.v[i] + ps_.omega[i].cross(a) - m.def.velocity;
+        const double vn = vrel.dot(nrm);
+        const Vec3 vt = vrel - vn * nrm;
+        const MeshWall::Key key{ps_.gid[i], (static_cast<std::uint64_t>(c.feature) << 32) | c.feature_id};
+        auto it = m.history.find(key);
+        Vec3 xi = it == m.history.end() ? Vec3::Zero() : it->second;
+        ContactResult res;
+        if (def_.contact_model == ContactModel::LinearSpringDashpot) {
+          LinearContactParams p = def_.contact;
+          p.mu = m.def.friction;
+          res = linear_contact(p, delta, nrm, vn, vt, ps_.mass[i], dt_, xi);
+        } else {
+          HertzContactParams p = def_.hertz;
+          p.mu = m.def.friction;
+          res = hertz_contact(p, delta, r, nrm, vn, vt, ps_.mass[i], dt_, xi);
+        }
+        m.next_history.emplace(key, xi);
+        ps_.f[i] += res.force;
+        ps_.torque[i] += a.cross(res.force);
+        const Vec3 arm = x + a - m.position;  // contact point about the mesh origin
+        const std::size_t part = c.part < load.part_force.size() ? c.part : 0;
+        load.part_force[part] -= res.force;
+        load.part_moment[part] -= arm.cross(res.force);
+        ++load.contacts;
+        if (delta / r > worst_overlap_ratio_) {
+          worst_overlap_ratio_ = delta / r;
+          worst_overlap_i_ = static_cast<std::uint32_t>(i);
+          worst_overlap_j_ = ParticleStore::kNone;
+        }
+      }
+    }
+    for (std::size_t k = 0; k < load.part_force.size(); ++k) {
+      load.force += load.part_force[k];
+      load.moment += load.part_moment[k];
+    }
+    m.history.swap(m.next_history);
+  }
+}
+
 template <class Law>
 void Engine::pair_forces(const Law& law) {
   Vec3* __restrict f = ps_.f.data();
@@ -536,6 +621,7 @@ void Engine::compute_forces() {
   worst_overlap_ratio_ = 0.0;
   field_forces();
   wall_forces();
+  if (!meshes_.empty()) mesh_forces();
   if (def_.contact_model == ContactModel::LinearSpringDashpot)
     pair_forces(LinearLaw{def_.contact});
   else
@@ -562,6 +648,8 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
       << ")";
     if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size())
       s << " between particles " << ps_.gid[worst_overlap_i_] << " and " << ps_.gid[worst_overlap_j_];
+    else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ == ParticleStore::kNone)
+      s << " between particle " << ps_.gid[worst_overlap_i_] << " and a mesh structure";
     else if (worst_overlap_i_ < ps_.size())
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and wall '"
         << walls_[ParticleStore::kNone - worst_overlap_j_].name << "'";
@@ -599,6 +687,7 @@ void Engine::step() {
   if (rotate)
     for (std::size_t i = 0; i < n; ++i) rotate_orientation(ps_.q[i], w[i], dt);
   for (auto& wall : walls_) wall.point += dt * wall.velocity;
+  for (auto& m : meshes_) m.position += dt * m.def.velocity;
   time_ += dt;
   ++step_;
   const double half_skin = 0.5 * skin();

@@ -15,6 +15,7 @@
 #pragma once
 
 #include "bond_parallel.h"
+#include "mesh/sphere_mesh_contact.h"
 #include "contact_hertz.h"
 #include "contact_linear.h"
 #include "particle_store.h"
@@ -23,6 +24,8 @@
 
 #include <cstdint>
 #include <functional>
+#include <memory>
+#include <unordered_map>
 #include <string>
 #include <vector>
 
@@ -67,6 +70,26 @@ struct ContactPair {
   Vec3 xi;               ///< tangential spring history
 };
 
+/// A rigid triangle-mesh structure (e.g. the pier) moving at a prescribed velocity.
+/// Contact with spheres uses the particle contact law over every face, edge and vertex
+/// contact that hs::mesh::MeshGrid reports (no double counting); forces are tallied per
+/// named part of the mesh.
+struct MeshWallDef {
+  std::string name = "structure";
+  mesh::TriMesh mesh;               ///< in its own frame
+  Vec3 position = Vec3::Zero();     ///< world position of the mesh frame origin, m
+  Vec3 velocity = Vec3::Zero();     ///< m/s
+  double friction = 0.1;            ///< ice-structure Coulomb friction
+};
+
+/// Loads on a mesh wall during the last step (exerted BY the particles ON the wall).
+struct MeshWallLoad {
+  Vec3 force = Vec3::Zero();                 ///< N
+  Vec3 moment = Vec3::Zero();                ///< N m, about the mesh frame origin
+  std::vector<Vec3> part_force, part_moment;  ///< per TriMesh part
+  std::size_t contacts = 0;
+};
+
 struct EnergyReport {
   double kinetic_translational = 0, kinetic_rotational = 0;
   double gravity_potential = 0, buoyancy_potential = 0;
@@ -97,14 +120,16 @@ class Engine {
   std::size_t bond_touching(std::size_t first, std::size_t last, BondKind kind,
                             double rel_tol = 1e-6);
   int add_wall(const PlaneWall& w);
+  /// Adds a moving triangle-mesh wall; throws hs::InputError if the mesh is invalid.
+  int add_mesh_wall(MeshWallDef def);
 
   // ---- time step ----
   /// dt from paper Eq. 2: alpha D sqrt(rho/E) with the smallest particle diameter.
   double eq2_time_step() const;
   /// Upper bound on the stable velocity-Verlet step: Gershgorin bound on the highest
   /// frequency of the stiffest springs (contacts, bond normal/shear/bending/twist,
-  /// lever arms and coordination included), reduced for damping:
-  /// dt_crit = (2/omega_max)(sqrt(1+zeta^2) - zeta). See docs/time-step.md.
+  /// lever arms and coordination included), reduced for damping (docs/engine.md):
+  /// dt_crit = (2/omega_max)(sqrt(1+zeta^2) - zeta).
   double critical_time_step() const;
   /// Throws hs::InputError naming the limit and the fix if dt > critical_time_step().
   void check_time_step() const;
@@ -126,6 +151,11 @@ class Engine {
   std::vector<PlaneWall>& walls() { return walls_; }
   /// Force exerted BY the particles ON wall k during the last step, N.
   const Vec3& wall_force(int k) const { return wall_force_[k]; }
+  std::size_t mesh_wall_count() const { return meshes_.size(); }
+  const MeshWallDef& mesh_wall(int k) const { return meshes_[k].def; }
+  const MeshWallLoad& mesh_wall_load(int k) const { return meshes_[k].load; }
+  /// Current world position of mesh wall k's frame origin.
+  const Vec3& mesh_wall_position(int k) const { return meshes_[k].position; }
   const StepStats& stats() const { return stats_; }
   const EngineDef& def() const { return def_; }
   EngineDef& mutable_def() { return def_; }
@@ -145,6 +175,7 @@ class Engine {
   void sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint32_t ncells);
   void field_forces();
   void wall_forces();
+  void mesh_forces();
   template <class Law>
   void pair_forces(const Law& law);
   void bond_forces();
@@ -159,6 +190,24 @@ class Engine {
   std::vector<PlaneWall> walls_;
   std::vector<Vec3> wall_force_;
   std::vector<std::vector<Vec3>> wall_hist_;  ///< [wall][particle]
+  struct MeshWall {
+    MeshWallDef def;
+    std::unique_ptr<mesh::MeshGrid> grid;
+    Vec3 position;
+    MeshWallLoad load;
+    struct Key {
+      GlobalId gid;
+      std::uint64_t feature;
+      bool operator==(const Key& o) const { return gid == o.gid && feature == o.feature; }
+    };
+    struct KeyHash {
+      std::size_t operator()(const Key& k) const { return std::hash<std::uint64_t>()(k.gid * 0x9E3779B97F4A7C15ull ^ k.feature); }
+    };
+    std::unordered_map<Key, Vec3, KeyHash> history, next_history;  ///< tangential springs
+  };
+  std::vector<MeshWall> meshes_;
+  std::vector<mesh::MeshContact> mesh_contacts_;
+  mesh::MeshQueryScratch mesh_scratch_;
   std::vector<Vec3> x_at_build_;
   double max_disp2_ = INFINITY;
   bool forces_valid_ = false;

@@ -3,6 +3,7 @@
 
 #include "bonded/engine.h"
 #include "bonded/hcp_lattice.h"
+#include "mesh/pier.h"
 
 namespace hs::test {
 

@@ -1,0 +1,8 @@
+#!/usr/bin/env bash
+# Installs the Debian packages (idempotent), configures and builds hybridsim (Release).
+# Result: build/hybridsim and the test executables under build/tests.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install-deps.sh
+cmake -S . -B build -DCMAKE_BUILD_TYPE=Release
+cmake --build build -j"$(nproc)"
