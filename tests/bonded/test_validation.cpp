@@ -326,9 +326,9 @@ TEST(Validation, FloatingStripEndLoadMatchesHetenyi) {
   ASSERT_GE(w_hist.size(), 2u);
   EXPECT_NEAR(w_hist[w_hist.size() - 2] / w_meas, 1.0, 0.005) << "not settled";
   // Brief's check: semi-infinite Hetenyi beam with the continuum E_eff, within 15 %: the
-  // formula ignores the lattice's discreteness (4 layers: EI_lattice/EI_cont ~ 0.8 -> w
-  // up ~6 %), the foundation beyond the load (~D/4 + D/2 of overhang -> w down ~5 %) and
-  // the finite length (~6 L_c, < 1 %).
+  // formula ignores the lattice's discreteness (4 layers: EI_lattice/EI_cont = 0.85 -> w
+  // up ~4 %), the foundation beyond the load (the loaded centres sit ~D/4 inside the
+  // strip's end -> w down ~5 %) and the finite length (~6 L_c, < 1 %).
   EXPECT_NEAR(w_meas / w_semi, 1.0, 0.15);
   // Sharper: the finite free-free beam with the lattice's own EI (from its bonds) and the
   // load where it is applied, within 5 %: the affine EI is an upper bound (non-affine
@@ -451,8 +451,10 @@ TEST(Validation, FloatingSlabFreeboardAndHeavePeriod) {
     const double T = (up.back() - up.front()) / (up.size() - 1);
     std::printf("[slab] heave period %.5f s (%zu cycles) vs 2 pi sqrt(rho_i h/(rho_w g)) = %.5f s (ratio %.5f)\n",
                 T, up.size() - 1, T_th, T / T_th);
-    // Exact for the column model bar the lattice's internal compliance (its modes are
-    // >100x faster than heave) and the time step (dt/T ~ 1e-4): 5 % is the brief's bound.
+    // Exact for a uniform column slab. Here heave couples weakly to roll/pitch because the
+    // B layers (the waterline layer) sit (D/2, row/3) off the A layers, so the waterplane
+    // centroid is off the centre of mass: measured -1.2 % at 3 m square, -0.6 % at 4.5 m.
+    // The lattice's own modes are >100x faster than heave and dt/T ~ 1e-4. Bound: 5 %.
     EXPECT_NEAR(T / T_th, 1.0, 0.05);
   }
 }
