@@ -430,3 +430,27 @@ TEST(DidYouMean, Suggestions) {
   EXPECT_EQ(hs::did_you_mean("colour", allowed), "");
   EXPECT_EQ(hs::did_you_mean("x", {}), "");
 }
+
+#include "analysis/pile_height.h"
+
+TEST(PileHeight, HighestUpstreamIceOverTheConeAboveWater) {
+  using hs::Vec3;
+  hs::analysis::PileProbe p;
+  p.axis_point = Vec3(10, 0, 0);
+  p.upstream = Vec3(-1, 0, 0);  // ice comes from -x
+  p.reach = 8.0;
+  const std::vector<Vec3> x = {Vec3(5, 0, 1.0),    // upstream, over the cone: top 1.25
+                               Vec3(4, 3, 2.0),    // upstream, within reach (sqrt(45) < 8): top 2.25
+                               Vec3(15, 0, 5.0),   // downstream: ignored
+                               Vec3(-5, 0, 9.0),   // upstream but beyond reach: ignored
+                               Vec3(6, 0, -3.0)};  // under water
+  const std::vector<double> r(x.size(), 0.25);
+  EXPECT_DOUBLE_EQ(hs::analysis::pile_height(p, x.data(), r.data(), x.size()), 2.25);
+  // Mirror symmetry: flipping the drift direction and mirroring the ice gives the same.
+  std::vector<Vec3> m = x;
+  for (auto& v : m) v.x() = 20.0 - v.x();
+  p.upstream = Vec3(1, 0, 0);
+  EXPECT_DOUBLE_EQ(hs::analysis::pile_height(p, m.data(), r.data(), m.size()), 2.25);
+  // Nothing above water: zero.
+  EXPECT_DOUBLE_EQ(hs::analysis::pile_height(p, x.data() + 4, r.data(), 1), 0.0);
+}
