@@ -1,3 +1,78 @@
-#include "bonded/engine.h"
+// hybridsim command line.
+//   hybridsim scene.json [-o out.h5] [--set path=value]...   (same as `hybridsim run ...`)
+//   hybridsim check scene.json [--set path=value]...          validate, print derived figures
+//   hybridsim bench NAME                                      built-in benchmark (JSON line)
+//   hybridsim --version
+// Exit codes: 0 ok, 1 internal error, 2 bad input (hs::InputError), 3 simulation unstable
+// (hs::SimulationError; the output written so far is kept).
+#include "app/bench.h"
+#include "app/run.h"
+#include "common/error.h"
+
+#include <CLI/CLI.hpp>
+
 #include <cstdio>
-int main() { hs::bonded::EngineDef d; hs::bonded::Engine e(d); std::printf("%zu\n", e.particles().size()); }
+#include <iostream>
+
+namespace {
+
+int report_input_error(const hs::InputError& e) {
+  // InputError::what() is "path: message"; print it as "error: <path>: <message>".
+  std::fprintf(stderr, "error: %s\n", e.what());
+  return 2;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App app{"hybridsim " HYBRIDSIM_VERSION
+               " - bonded-particle DEM of sea ice against structures.\n"
+               "Usage: hybridsim SCENE.json [-o OUT.h5] [--set path=value]...  (same as `hybridsim run`)",
+               "hybridsim"};
+  app.set_version_flag("--version", std::string("hybridsim ") + HYBRIDSIM_VERSION);
+  app.require_subcommand(0, 1);
+
+  hs::app::RunOptions opt;
+  std::string bench_name;
+  auto add_common = [&](CLI::App* a, bool with_output) {
+    a->add_option("scene", opt.scene_path, "scene file (JSON, see docs/scene.md)");
+    if (with_output) a->add_option("-o,--output", opt.output, "output HDF5 file (default: <name>.h5 of the scene)");
+    a->add_option("--set", opt.overrides,
+                  "override a scene field, e.g. --set ice.thickness=0.9 (value parsed as JSON, else a string); "
+                  "repeatable")
+        ->allow_extra_args(false);
+  };
+  add_common(&app, true);
+  CLI::App* run = app.add_subcommand("run", "run a scene (the default command)");
+  add_common(run, true);
+  CLI::App* check = app.add_subcommand("check", "validate a scene and print particle and bond counts, dt, "
+                                                 "memory and run-time estimates");
+  add_common(check, false);
+  CLI::App* bench = app.add_subcommand("bench", "run a built-in benchmark and print one JSON line");
+  bench->add_option("name", bench_name, "benchmark name")->required();
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    const int rc = app.exit(e);
+    return rc == 0 ? 0 : 2;
+  }
+
+  try {
+    if (*bench) return hs::app::run_benchmark(bench_name, std::cout, std::cerr);
+    if (opt.scene_path.empty()) {
+      std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
+      return 2;
+    }
+    if (*check) return hs::app::check_scene(opt, std::cout, std::cerr);
+    return hs::app::run_scene(opt, std::cout, stderr);
+  } catch (const hs::InputError& e) {
+    return report_input_error(e);
+  } catch (const hs::SimulationError& e) {
+    std::fprintf(stderr, "error: simulation unstable: %s\n", e.what());
+    return 3;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "error: %s\n", e.what());
+    return 1;
+  }
+}

@@ -618,6 +618,7 @@ void Engine::bond_forces() {
 }
 
 void Engine::compute_forces() {
+  if (need_rebuild_ || x_at_build_.size() != ps_.size()) build_neighbors();
   worst_overlap_ratio_ = 0.0;
   field_forces();
   wall_forces();
@@ -665,7 +666,6 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
 }
 
 void Engine::step() {
-  if (need_rebuild_ && !forces_valid_) build_neighbors();
   if (!forces_valid_) compute_forces();
   const std::size_t n = ps_.owned();
   const double dt = dt_, hdt = 0.5 * dt_;

@@ -1,0 +1,30 @@
+// The `hybridsim run` and `hybridsim check` commands.
+#pragma once
+
+#include <cstdio>
+#include <ostream>
+#include <string>
+#include <vector>
+
+namespace hs::app {
+
+struct RunOptions {
+  std::string scene_path;
+  std::string output;                  ///< -o; empty: the scene's "output" ("<name>.h5")
+  std::vector<std::string> overrides;  ///< --set path=value, in order
+};
+
+/// Assumed throughput for run-time estimates (one core, Release).
+inline constexpr double kParticleStepsPerSecond = 3e6;
+
+/// Loads, builds and runs the scene, writing the HDF5 run file. Progress goes to `progress`
+/// (a single updating line when it is a terminal, a log line every ~10 s otherwise), the
+/// summary to `out`. Returns 0; throws hs::InputError (bad input, nothing run) and
+/// hs::SimulationError (unstable; the output written so far is flushed and closed first).
+int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress);
+
+/// Loads and builds the scene and prints the derived figures (counts, dt, estimates).
+/// Returns 0; throws hs::InputError.
+int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err);
+
+}  // namespace hs::app

@@ -1,0 +1,151 @@
+// Scenes: the JSON file a user writes, read into plain definition structs.
+//
+// Flow:  text --parse_json_text--> json --apply_override (--set)--> json
+//            --parse_scene (validates everything, once)--> Scene --build_engine--> Engine
+// Every problem is an hs::InputError whose path is the JSON pointer of the offending value
+// ("/ice/thickness") and whose message gives the bad value, what is allowed and the fix.
+// Unknown keys are errors with a did-you-mean suggestion. Fields, units and defaults:
+// docs/scene.md; JSON Schema for editors: docs/scene.schema.json.
+#pragma once
+
+#include "bonded/engine.h"
+
+#include <nlohmann/json.hpp>
+
+#include <array>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hs::scene {
+
+struct TimeDef {
+  double duration = 0.0;           ///< simulated time, s (required)
+  double dt = 0.0;                 ///< s; 0 = paper Eq. 2 with dt_alpha
+  double dt_alpha = 0.1;           ///< alpha in dt = alpha D sqrt(rho/E)
+  double output_interval = 0.01;   ///< s between /series rows
+  double snapshot_interval = 0.0;  ///< s between particle snapshots; 0 = none
+};
+
+struct MaterialDef {
+  double density = 920.0;          ///< kg/m^3
+  double youngs_modulus = 1e9;     ///< Pa
+  double poisson_ratio = 0.3;
+  double particle_diameter = 0.5;  ///< D, m
+  double restitution = 0.3;        ///< contacts
+  double friction = 0.3;           ///< particle-particle Coulomb coefficient
+  bonded::ContactModel contact_model = bonded::ContactModel::LinearSpringDashpot;
+  double stiffness = 0.0;          ///< k_n = k_t, N/m; 0 = paper Eq. 1, pi E D / 12
+  /// The stiffness actually used (Eq. 1 when `stiffness` is 0).
+  double effective_stiffness() const;
+};
+
+struct BondsDef {
+  double tensile_strength = 0.6e6;         ///< Pa
+  double shear_strength = 0.6e6;           ///< Pa
+  double damping_ratio = 0.1;
+  double radius_ratio = 1.0;               ///< bond radius / particle radius
+  double freeze_tensile_strength = 2e4;    ///< Pa (freeze bonds between blocks)
+  double freeze_shear_strength = 2e4;      ///< Pa
+};
+
+struct WaterDef {
+  bool enabled = true;
+  double level = 0.0;              ///< z of the surface, m
+  double density = 1025.0;         ///< kg/m^3
+  double linear_drag = 0.0;        ///< N s/m per particle
+  double drag_coefficient = 0.0;   ///< quadratic drag C_d
+  Vec3 current = Vec3::Zero();     ///< m/s
+};
+
+struct ConsolidatedLayerDef {
+  double thickness = 0.0;          ///< m (> ice thickness)
+  double width = 0.0;              ///< m, extent along x of the band (the band runs along y)
+  double center_x = 0.0;           ///< m, x of the band's centre line
+};
+
+struct IceDef {
+  std::string type = "level_ice";
+  double thickness = 0.0;          ///< m (required)
+  double length = 0.0;             ///< m along x (required)
+  double width = 0.0;              ///< m along y (required)
+  std::array<double, 2> origin{0.0, 0.0};  ///< (x, y) of the -x,-y corner, m
+  bool has_consolidated_layer = false;
+  ConsolidatedLayerDef consolidated_layer;
+};
+
+struct WallDef {
+  std::string name;
+  Vec3 point = Vec3::Zero();       ///< m
+  Vec3 normal = Vec3::UnitZ();     ///< unit (normalised at load), into the particle side
+  Vec3 velocity = Vec3::Zero();    ///< m/s
+  double friction = 0.1;           ///< ice-wall Coulomb coefficient
+};
+
+struct StabilityDef {
+  double max_speed = 100.0;        ///< m/s
+  double max_overlap_ratio = 0.5;  ///< overlap / radius
+};
+
+struct Scene {
+  std::string name;
+  std::string description;
+  std::string output;              ///< output file; default "<name>.h5"
+  TimeDef time;
+  MaterialDef material;
+  BondsDef bonds;
+  WaterDef water;
+  Vec3 gravity{0.0, 0.0, -9.81};
+  bool has_ice = false;
+  IceDef ice;
+  std::vector<WallDef> walls;
+  StabilityDef stability;
+
+  nlohmann::json json;             ///< the effective scene (after --set overrides)
+  std::vector<std::string> warnings;  ///< "path: message", for the user; not errors
+};
+
+// ---- reading ----
+/// Parses JSON text; syntax errors become InputError(source, "invalid JSON at line L,
+/// column C: ..."). `source` names the text (file name) in messages.
+nlohmann::json parse_json_text(const std::string& text, const std::string& source);
+/// Reads a file and parses it; a missing or unreadable file is an InputError(path, ...).
+nlohmann::json read_json_file(const std::string& path);
+/// Sets one field from "path.to.field=value" (the value is parsed as JSON, else taken as a
+/// string). Array elements by index: "walls.0.velocity=[-0.5,0,0]". Missing objects along
+/// the path are created. Throws InputError naming the path if it does not exist in the
+/// scene schema, or if the assignment is malformed.
+void apply_override(nlohmann::json& scene, const std::string& assignment);
+/// Validates and converts. Throws InputError naming the JSON pointer of the first problem.
+Scene parse_scene(const nlohmann::json& j);
+/// read_json_file + every override in order + parse_scene.
+Scene load_scene_file(const std::string& path, const std::vector<std::string>& overrides = {});
+
+/// The keys allowed in the object at `pointer` ("" root, "/ice", "/walls/0", ...); empty
+/// if `pointer` is not an object in the schema. Used for unknown-key checks and --set.
+const std::vector<std::string>& allowed_keys(const std::string& pointer);
+
+// ---- building ----
+/// Engine settings of the scene (contact and bond laws, water, gravity, limits, dt).
+bonded::EngineDef engine_def(const Scene& s);
+
+struct IceLayout {
+  std::size_t layers = 0;               ///< level-ice layers
+  std::size_t consolidated_layers = 0;  ///< 0 without a consolidated layer
+  double bottom_z = 0.0;                ///< level ice bottom, m
+  double top_z = 0.0;                   ///< level ice top, m
+};
+/// Layer counts and floating position of the ice sheet.
+IceLayout ice_layout(const Scene& s);
+
+struct Built {
+  std::unique_ptr<bonded::Engine> engine;
+  std::size_t particles = 0;
+  std::size_t bonds = 0;
+  IceLayout layout;
+};
+/// Builds the engine: bonded HCP ice floating at equilibrium, walls. With check_dt the time
+/// step is checked against the critical step (InputError at "/time/dt" if too large).
+Built build_engine(const Scene& s, bool check_dt = true);
+
+}  // namespace hs::scene

@@ -1,0 +1,281 @@
+// Scene loading: defaults, the built engine, overrides, and malformed scenes that must each
+// give an hs::InputError naming the right JSON path.
+#include "bonded/hcp_lattice.h"
+#include "common/error.h"
+#include "scene/scene.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+using namespace hs;
+using nlohmann::json;
+
+namespace {
+
+json minimal() {
+  return json::parse(R"({
+    "name": "t",
+    "time": {"duration": 0.01},
+    "ice": {"thickness": 1.5, "length": 3, "width": 3}
+  })");
+}
+
+/// Runs f, expects an InputError with this path whose message contains `needle`.
+void expect_error(const std::function<void()>& f, const std::string& path, const std::string& needle) {
+  try {
+    f();
+    ADD_FAILURE() << "no error; expected one at " << path;
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.path(), path) << e.what();
+    EXPECT_NE(std::string(e.what()).find(needle), std::string::npos) << "message: " << e.what();
+  }
+}
+
+/// Parses minimal() with the JSON-pointer `where` set to `value` (or erased if null-ptr tag).
+void expect_bad(const std::string& where, const json& value, const std::string& path, const std::string& needle) {
+  json j = minimal();
+  j[json::json_pointer(where)] = value;
+  expect_error([&] { scene::parse_scene(j); }, path, needle);
+}
+
+void expect_bad_erase(const std::string& parent, const std::string& key, const std::string& path,
+                      const std::string& needle) {
+  json j = minimal();
+  j[json::json_pointer(parent)].erase(key);
+  expect_error([&] { scene::parse_scene(j); }, path, needle);
+}
+
+}  // namespace
+
+TEST(Scene, DefaultsFromAMinimalScene) {
+  const scene::Scene s = scene::parse_scene(minimal());
+  EXPECT_EQ(s.name, "t");
+  EXPECT_EQ(s.output, "t.h5");
+  EXPECT_EQ(s.time.dt, 0.0);
+  EXPECT_EQ(s.time.dt_alpha, 0.1);
+  EXPECT_EQ(s.time.snapshot_interval, 0.0);
+  EXPECT_EQ(s.material.density, 920.0);
+  EXPECT_EQ(s.material.youngs_modulus, 1e9);
+  EXPECT_EQ(s.material.particle_diameter, 0.5);
+  EXPECT_EQ(s.material.restitution, 0.3);
+  EXPECT_EQ(s.material.friction, 0.3);
+  EXPECT_EQ(s.material.contact_model, bonded::ContactModel::LinearSpringDashpot);
+  EXPECT_DOUBLE_EQ(s.material.effective_stiffness(), kPi * 1e9 * 0.5 / 12.0);  // paper Eq. 1
+  EXPECT_EQ(s.bonds.damping_ratio, 0.1);
+  EXPECT_EQ(s.bonds.radius_ratio, 1.0);
+  EXPECT_TRUE(s.water.enabled);
+  EXPECT_EQ(s.water.density, 1025.0);
+  EXPECT_EQ(s.gravity, Vec3(0, 0, -9.81));
+  EXPECT_EQ(s.ice.type, "level_ice");
+  EXPECT_FALSE(s.ice.has_consolidated_layer);
+  EXPECT_TRUE(s.walls.empty());
+  EXPECT_EQ(s.stability.max_speed, 100.0);
+  EXPECT_EQ(s.stability.max_overlap_ratio, 0.5);
+  EXPECT_TRUE(s.warnings.empty());
+
+  const auto d = scene::engine_def(s);
+  EXPECT_DOUBLE_EQ(d.contact.kn, kPi * 1e9 * 0.5 / 12.0);
+  EXPECT_DOUBLE_EQ(d.bond[0].radius, 0.25);
+  EXPECT_EQ(d.bond[0].sigma_c, 0.6e6);
+  EXPECT_TRUE(d.water.enabled);
+}
+
+TEST(Scene, BuiltSheetFloatsAtEquilibrium) {
+  json j = minimal();
+  j["water"]["linear_drag"] = 5.0;
+  const scene::Scene s = scene::parse_scene(j);
+  scene::Built b = scene::build_engine(s);
+  const double D = 0.5, c = bonded::hcp_layer_spacing(D);
+  EXPECT_EQ(b.layout.layers, 4u);  // round(1.5 / 0.408)
+  EXPECT_GT(b.particles, 40u);
+  EXPECT_GT(b.bonds, 3 * b.particles);
+  const auto& p = b.engine->particles();
+  double zmin = 1e9, zmax = -1e9;
+  for (std::size_t i = 0; i < p.size(); ++i) {
+    EXPECT_DOUBLE_EQ(p.mass[i], 920.0 * bonded::hcp_cell_volume(D));
+    EXPECT_GE(p.x[i].x() - 0.25, -1e-9);  // spheres inside the footprint
+    EXPECT_LE(p.x[i].x() + 0.25, 3.0 + 1e-9);
+    zmin = std::min(zmin, p.x[i].z());
+    zmax = std::max(zmax, p.x[i].z());
+  }
+  // freeboard h (1 - rho_i/rho_w) with h = layers * c
+  EXPECT_NEAR(zmax + 0.5 * c, 4 * c * (1.0 - 920.0 / 1025.0), 1e-9);
+  auto mean_z = [&] {
+    double z = 0;
+    for (std::size_t i = 0; i < p.size(); ++i) z += p.x[i].z();
+    return z / p.size();
+  };
+  const double z0 = mean_z();
+  b.engine->run(2000);
+  double vmax = 0;
+  for (std::size_t i = 0; i < p.size(); ++i) vmax = std::max(vmax, p.v[i].norm());
+  // Only the small elastic settling of the lattice (top layer partly submerged) remains.
+  EXPECT_LT(vmax, 0.05);  // (edge rows differ between A and B layers: a small tilt settles)
+  EXPECT_NEAR(mean_z(), z0, 2e-3) << "the sheet must start floating at equilibrium";
+}
+
+TEST(Scene, ConsolidatedLayerAddsBondedLayers) {
+  json j = minimal();
+  j["ice"]["length"] = 6;
+  const auto n0 = scene::build_engine(scene::parse_scene(j)).particles;
+  j["ice"]["consolidated_layer"] = {{"thickness", 2.4}, {"width", 2.0}, {"center_x", 3.0}};
+  scene::Built b = scene::build_engine(scene::parse_scene(j));
+  EXPECT_GT(b.layout.consolidated_layers, b.layout.layers);
+  EXPECT_GT(b.particles, n0);
+  // One connected lattice: every particle keeps at least 3 bonds.
+  const auto& p = b.engine->particles();
+  for (std::size_t i = 0; i < p.size(); ++i) EXPECT_GE(p.bond_count[i], 3) << i;
+}
+
+TEST(Scene, WarnsAboutThinIce) {
+  json j = minimal();
+  j["ice"]["thickness"] = 1.0;
+  const scene::Scene s = scene::parse_scene(j);
+  ASSERT_EQ(s.warnings.size(), 1u);
+  EXPECT_NE(s.warnings[0].find("/ice/thickness"), std::string::npos);
+}
+
+TEST(Scene, OverridesSetFieldsParsedAsJsonElseString) {
+  json j = minimal();
+  j["walls"] = json::array({{{"name", "a"}, {"point", {0, 0, 0}}, {"normal", {1, 0, 0}}}});
+  scene::apply_override(j, "ice.thickness=0.9");
+  scene::apply_override(j, "name=run2");
+  scene::apply_override(j, "water.current=[0.1,0,0]");
+  scene::apply_override(j, "ice.consolidated_layer.thickness=2");
+  scene::apply_override(j, "walls.0.velocity=[-0.4,0,0]");
+  scene::apply_override(j, "water.enabled=false");
+  EXPECT_EQ(j["ice"]["thickness"], 0.9);
+  EXPECT_EQ(j["name"], "run2");
+  EXPECT_EQ(j["water"]["current"][0], 0.1);
+  EXPECT_EQ(j["ice"]["consolidated_layer"]["thickness"], 2);
+  EXPECT_EQ(j["walls"][0]["velocity"][0], -0.4);
+  EXPECT_EQ(j["water"]["enabled"], false);
+}
+
+// ---------------------------------------------------------------- malformed scenes
+
+TEST(SceneErrors, UnknownKeysSuggestTheNearestOne) {
+  json j = minimal();
+  j["tme"] = 1;
+  expect_error([&] { scene::parse_scene(j); }, "/tme", "did you mean \"time\"");
+  j = minimal();
+  j["ice"]["thicknes"] = 1;
+  expect_error([&] { scene::parse_scene(j); }, "/ice/thicknes", "did you mean \"thickness\"");
+  j = minimal();
+  j["walls"] = json::array({{{"name", "a"}, {"point", {0, 0, 0}}, {"normal", {1, 0, 0}}, {"velocty", {0, 0, 0}}}});
+  expect_error([&] { scene::parse_scene(j); }, "/walls/0/velocty", "did you mean \"velocity\"");
+}
+
+TEST(SceneErrors, WrongTypes) {
+  expect_bad("/ice/thickness", "thick", "/ice/thickness", "expected a number");
+  expect_bad("/water/enabled", "yes", "/water/enabled", "expected true or false");
+  expect_bad("/water/current", json::array({1, 2}), "/water/current", "array of 3 numbers");
+  expect_bad("/gravity", json::array({0, 0, "x"}), "/gravity/2", "expected a finite number");
+  expect_bad("/walls", 5, "/walls", "expected an array");
+  expect_bad("/time", 3, "/time", "expected an object");
+  expect_bad("/name", 42, "/name", "expected a string");
+}
+
+TEST(SceneErrors, OutOfRangeValues) {
+  expect_bad("/ice/thickness", -0.5, "/ice/thickness", "-0.5");
+  expect_bad("/ice/thickness", 0.1, "/ice/thickness", "no particle layer");
+  expect_bad("/time/dt", -1e-5, "/time/dt", "out of range");
+  expect_bad("/time/dt_alpha", 0, "/time/dt_alpha", "> 0");
+  expect_bad("/time/duration", 0, "/time/duration", "> 0");
+  expect_bad("/material/poisson_ratio", 0.7, "/material/poisson_ratio", "< 0.5");
+  expect_bad("/material/restitution", 0, "/material/restitution", "out of range");
+  expect_bad("/bonds/damping_ratio", 2, "/bonds/damping_ratio", "<= 1");
+  expect_bad("/stability/max_speed", 0, "/stability/max_speed", "> 0");
+  expect_bad("/ice/consolidated_layer", json{{"thickness", 1.0}, {"width", 2}}, "/ice/consolidated_layer/thickness",
+             "greater than the level ice thickness");
+}
+
+TEST(SceneErrors, BadWordsAndNames) {
+  expect_bad("/material/contact_model", "hertzz", "/material/contact_model", "did you mean \"hertz\"");
+  expect_bad("/ice/type", "ridge", "/ice/type", "level_ice");
+  expect_bad("/name", "a/b", "/name", "letters, digits");
+}
+
+TEST(SceneErrors, MissingRequiredFields) {
+  expect_bad_erase("/ice", "length", "/ice/length", "missing required field");
+  expect_bad_erase("/time", "duration", "/time/duration", "missing required field");
+  expect_bad_erase("", "name", "/name", "missing required field");
+  expect_bad_erase("", "ice", "/ice", "missing required section");
+  expect_bad_erase("", "time", "/time", "missing required field");
+}
+
+TEST(SceneErrors, Walls) {
+  json j = minimal();
+  j["walls"] = json::array({{{"name", "a"}, {"point", {0, 0, 0}}, {"normal", {0, 0, 0}}}});
+  expect_error([&] { scene::parse_scene(j); }, "/walls/0/normal", "zero length");
+  j["walls"] = json::array({{{"name", "a"}, {"point", {0, 0, 0}}, {"normal", {1, 0, 0}}}, {{"name", "b"}}});
+  expect_error([&] { scene::parse_scene(j); }, "/walls/1/point", "missing required field");
+  j["walls"] = json::array({{{"name", "a"}, {"point", {0, 0, 0}}, {"normal", {1, 0, 0}}},
+                            {{"name", "a"}, {"point", {0, 0, 0}}, {"normal", {1, 0, 0}}}});
+  expect_error([&] { scene::parse_scene(j); }, "/walls/1/name", "used twice");
+}
+
+TEST(SceneErrors, UnstableTimeStepNamesTimeDt) {
+  json j = minimal();
+  j["time"]["dt"] = 1e-2;
+  const scene::Scene s = scene::parse_scene(j);
+  expect_error([&] { scene::build_engine(s); }, "/time/dt", "stable limit");
+}
+
+TEST(SceneErrors, FilesAndJsonSyntax) {
+  expect_error([] { scene::load_scene_file("/nonexistent/dir/scene.json"); }, "/nonexistent/dir/scene.json",
+               "cannot open");
+  expect_error([] { scene::parse_json_text("{\n  \"name\": \"x\",\n  \"time\": {\"duration\": 1,}\n}", "s.json"); },
+               "s.json", "line 3");
+  expect_error([] { scene::parse_scene(json::array({1, 2})); }, "/", "expected an object");
+  const auto dir = std::filesystem::temp_directory_path() / "hs_test_scene";
+  std::filesystem::create_directories(dir);
+  const auto f = (dir / "bad.json").string();
+  std::ofstream(f) << "{\"name\": \"x\"\n \"time\": {}}";
+  expect_error([&] { scene::load_scene_file(f); }, f, "line 2");
+}
+
+TEST(SceneErrors, BadOverrides) {
+  json j = minimal();
+  expect_error([&] { scene::apply_override(j, "ice.thicknes=1"); }, "/ice/thicknes", "did you mean \"thickness\"");
+  expect_error([&] { scene::apply_override(j, "ice.thickness"); }, "--set", "path.to.field=value");
+  expect_error([&] { scene::apply_override(j, "walls.5.velocity=[0,0,0]"); }, "/walls", "absent");
+  expect_error([&] { scene::apply_override(j, "time.duration.x=1"); }, "/time/duration", "not an object");
+  expect_error([&] { scene::apply_override(j, "bogus=1"); }, "/bogus", "does not exist in the scene schema");
+  // The override is validated like the file: a bad value names its path.
+  expect_error(
+      [&] {
+        json k = minimal();
+        scene::apply_override(k, "ice.thickness=-1");
+        scene::parse_scene(k);
+      },
+      "/ice/thickness", "out of range");
+}
+
+TEST(SceneSchema, DocsSchemaListsTheSameKeys) {
+  std::ifstream in(std::string(HYBRIDSIM_SOURCE_DIR) + "/docs/scene.schema.json");
+  ASSERT_TRUE(in) << "docs/scene.schema.json missing";
+  const json schema = json::parse(in);
+  // Walk the schema's objects and compare their properties with allowed_keys().
+  std::function<void(const json&, const std::string&)> walk = [&](const json& node, const std::string& ptr) {
+    if (node.contains("$ref")) {
+      const std::string ref = node["$ref"].get<std::string>();  // "#/$defs/wall"
+      return walk(schema[json::json_pointer(ref.substr(1))], ptr);
+    }
+    if (node.contains("properties")) {
+      std::vector<std::string> keys;
+      for (const auto& [k, v] : node["properties"].items()) keys.push_back(k);
+      auto allowed = scene::allowed_keys(ptr);
+      std::sort(keys.begin(), keys.end());
+      std::sort(allowed.begin(), allowed.end());
+      EXPECT_EQ(keys, allowed) << "at " << ptr;
+      EXPECT_EQ(node.value("additionalProperties", true), false) << "at " << ptr;
+      for (const auto& [k, v] : node["properties"].items()) walk(v, ptr + "/" + k);
+    }
+    if (node.contains("items") && node["items"].is_object()) walk(node["items"], ptr + "/0");
+  };
+  walk(schema, "");
+}
