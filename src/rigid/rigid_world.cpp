@@ -180,7 +180,10 @@ BlockId RigidWorld::add_block(const BlockDef& d) {
   if (!d.fixed) {
     s.body->setLinearVelocity(to_bt(d.velocity));
     s.body->setAngularVelocity(to_bt(d.angular_velocity));
-    if (!m.def.allow_sleep) s.body->setActivationState(DISABLE_DEACTIVATION);
+    if (!m.def.allow_sleep)
+      s.body->setActivationState(DISABLE_DEACTIVATION);
+    else
+      s.body->setSleepingThresholds(m.def.sleep_linear_velocity, m.def.sleep_angular_velocity);
   }
   s.body->setUserIndex(static_cast<int>(idx));
   m.world->addRigidBody(s.body.get());

@@ -69,6 +69,10 @@ struct RigidWorldDef {
   /// Allow Bullet to put resting blocks to sleep (off: floating blocks must respond
   /// to the water at every step, and sleeping hurts determinism across scenes).
   bool allow_sleep = false;
+  /// With allow_sleep: a body is a sleep candidate below these speeds (Bullet's
+  /// defaults); an island sleeps when all its bodies stayed candidates for 2 s.
+  double sleep_linear_velocity = 0.8;   ///< m/s
+  double sleep_angular_velocity = 1.0;  ///< rad/s
 };
 
 struct BlockDef {

@@ -1,0 +1,1037 @@
+// Ridge generator: see ridge.h and docs/ridge.md.
+#include "rigid/ridge.h"
+
+#include "common/did_you_mean.h"
+#include "common/error.h"
+#include "rigid/rigid_world.h"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <limits>
+#include <random>
+#include <sstream>
+#include <unordered_map>
+
+namespace hs::rigid {
+
+namespace {
+
+constexpr double kDeg = 3.14159265358979323846 / 180.0;
+constexpr double kTwoPi = 2.0 * 3.14159265358979323846;
+
+// ---------------------------------------------------------------- random numbers
+// mt19937_64 is specified bit for bit by the standard; the distributions are not, so they
+// are written out here (same seed -> same ridge with any standard library).
+class Rng {
+ public:
+  explicit Rng(std::uint64_t seed) : g_(seed) {}
+  double uniform() { return static_cast<double>(g_() >> 11) * 0x1.0p-53; }  // [0, 1)
+  double uniform(double a, double b) { return a + (b - a) * uniform(); }
+  double normal() {  // Box-Muller, both values used
+    if (has_spare_) {
+      has_spare_ = false;
+      return spare_;
+    }
+    const double u1 = 1.0 - uniform();  // (0, 1]
+    const double u2 = uniform();
+    const double r = std::sqrt(-2.0 * std::log(u1));
+    spare_ = r * std::sin(kTwoPi * u2);
+    has_spare_ = true;
+    return r * std::cos(kTwoPi * u2);
+  }
+  Quat rotation() {  // uniform on SO(3) (Shoemake)
+    const double u1 = uniform(), u2 = uniform(), u3 = uniform();
+    const double a = std::sqrt(1.0 - u1), b = std::sqrt(u1);
+    return Quat(b * std::cos(kTwoPi * u3), a * std::sin(kTwoPi * u2), a * std::cos(kTwoPi * u2),
+                b * std::sin(kTwoPi * u3));
+  }
+
+ private:
+  std::mt19937_64 g_;
+  bool has_spare_ = false;
+  double spare_ = 0.0;
+};
+
+double sample_ln_r(Rng& rng, double m, double s) {
+  for (;;) {
+    const double z = rng.normal();
+    if (std::abs(z) <= 4.0) return m + s * z;
+  }
+}
+
+// ---------------------------------------------------------------- box geometry
+/// Half extent of the box along the unit direction e.
+double reach(const Vec3& h, const Mat3& R, const Vec3& e) {
+  return h.x() * std::abs(R.col(0).dot(e)) + h.y() * std::abs(R.col(1).dot(e)) +
+         h.z() * std::abs(R.col(2).dot(e));
+}
+Vec3 aabb_half(const Vec3& h, const Mat3& R) {
+  return Vec3(reach(h, R, Vec3::UnitX()), reach(h, R, Vec3::UnitY()), reach(h, R, Vec3::UnitZ()));
+}
+
+/// SAT: minimum overlap depth over the 15 axes and that axis (from a to b); depth <= 0
+/// means separated (the value is then the largest gap found, not a distance).
+double sat(const Vec3& ha, const Vec3& xa, const Mat3& A, const Vec3& hb, const Vec3& xb,
+           const Mat3& B, Vec3* axis) {
+  const Vec3 d = xb - xa;
+  double depth = std::numeric_limits<double>::infinity();
+  Vec3 best = Vec3::UnitZ();
+  auto test = [&](const Vec3& L) {
+    const double o = reach(ha, A, L) + reach(hb, B, L) - std::abs(d.dot(L));
+    if (o < depth) {
+      depth = o;
+      best = L;
+    }
+    return o > 0.0;
+  };
+  for (int i = 0; i < 3; ++i)
+    if (!test(A.col(i))) return depth;
+  for (int i = 0; i < 3; ++i)
+    if (!test(B.col(i))) return depth;
+  for (int i = 0; i < 3; ++i)
+    for (int k = 0; k < 3; ++k) {
+      Vec3 c = A.col(i).cross(B.col(k));
+      const double n = c.norm();
+      if (n < 1e-6) continue;
+      if (!test(c / n)) return depth;
+    }
+  if (axis) *axis = best.dot(d) < 0.0 ? Vec3(-best) : best;
+  return depth;
+}
+
+using Poly = std::vector<Vec3>;
+
+/// Face polygons of a box, counter-clockwise about their outward normals.
+std::array<Poly, 6> box_faces(const Vec3& h, const Vec3& x, const Mat3& R) {
+  std::array<Poly, 6> faces;
+  const Vec3 ax[3] = {R.col(0) * h.x(), R.col(1) * h.y(), R.col(2) * h.z()};
+  for (int k = 0; k < 3; ++k) {
+    const Vec3& n = ax[k];
+    const Vec3& u = ax[(k + 1) % 3];
+    const Vec3& w = ax[(k + 2) % 3];
+    for (int sgn = 0; sgn < 2; ++sgn) {
+      const Vec3 c = x + (sgn == 0 ? 1.0 : -1.0) * n;
+      Poly q = {c + u + w, c - u + w, c - u - w, c + u - w};
+      if (sgn == 1) std::swap(q[1], q[3]);
+      faces[2 * k + sgn] = std::move(q);
+    }
+  }
+  return faces;
+}
+
+/// Keeps the part of a convex polygon with n.p <= d.
+Poly clip(const Poly& in, const Vec3& n, double d) {
+  Poly out;
+  const std::size_t m = in.size();
+  for (std::size_t i = 0; i < m; ++i) {
+    const Vec3& a = in[i];
+    const Vec3& b = in[(i + 1) % m];
+    const double da = n.dot(a) - d, db = n.dot(b) - d;
+    if (da <= 0.0) out.push_back(a);
+    if ((da < 0.0 && db > 0.0) || (da > 0.0 && db < 0.0)) out.push_back(a + (da / (da - db)) * (b - a));
+  }
+  return out;
+}
+
+/// Volume and centroid of the intersection of two boxes: the faces of each box clipped to
+/// the other box bound the (convex) intersection; divergence theorem with signed tetrahedra.
+double box_intersection(const Vec3& ha, const Vec3& xa, const Mat3& A, const Vec3& hb,
+                        const Vec3& xb, const Mat3& B, Vec3* centroid) {
+  std::vector<Poly> polys;
+  auto add = [&](const Vec3& h1, const Vec3& x1, const Mat3& R1, const Vec3& h2, const Vec3& x2,
+                 const Mat3& R2) {
+    for (Poly& f : box_faces(h1, x1, R1)) {
+      Poly p = std::move(f);
+      for (int k = 0; k < 3 && p.size() >= 3; ++k) {
+        const Vec3 n = R2.col(k);
+        p = clip(p, n, n.dot(x2) + h2[k]);
+        if (p.size() >= 3) p = clip(p, -n, -n.dot(x2) + h2[k]);
+      }
+      if (p.size() >= 3) polys.push_back(std::move(p));
+    }
+  };
+  add(ha, xa, A, hb, xb, B);
+  add(hb, xb, B, ha, xa, A);
+  Vec3 p0 = Vec3::Zero();
+  std::size_t np = 0;
+  for (const Poly& p : polys)
+    for (const Vec3& v : p) p0 += v, ++np;
+  if (np == 0) return 0.0;
+  p0 /= static_cast<double>(np);
+  double vol = 0.0;
+  Vec3 mom = Vec3::Zero();
+  for (const Poly& p : polys)
+    for (std::size_t i = 1; i + 1 < p.size(); ++i) {
+      const Vec3 a = p[0] - p0, b = p[i] - p0, c = p[i + 1] - p0;
+      const double vt = a.dot(b.cross(c)) / 6.0;
+      vol += vt;
+      mom += vt * (p0 + 0.25 * (a + b + c));
+    }
+  if (centroid) *centroid = vol > 0.0 ? Vec3(mom / vol) : p0;
+  return std::max(0.0, vol);
+}
+
+// ---------------------------------------------------------------- spatial hash
+class HashGrid {
+ public:
+  explicit HashGrid(double cell) : cell_(cell) {}
+  void insert(std::int32_t id, const Vec3& lo, const Vec3& hi) {
+    for_cells(lo, hi, [&](std::uint64_t k) { map_[k].push_back(id); });
+  }
+  /// Ids whose boxes were inserted over cells touching [lo, hi], each once, ascending.
+  void query(const Vec3& lo, const Vec3& hi, std::vector<std::int32_t>& out) {
+    out.clear();
+    for_cells(lo, hi, [&](std::uint64_t k) {
+      auto it = map_.find(k);
+      if (it == map_.end()) return;
+      for (std::int32_t id : it->second) {
+        if (static_cast<std::size_t>(id) >= stamp_.size()) stamp_.resize(id + 1, 0);
+        if (stamp_[id] == epoch_) continue;
+        stamp_[id] = epoch_;
+        out.push_back(id);
+      }
+    });
+    ++epoch_;
+    std::sort(out.begin(), out.end());
+  }
+  const std::vector<std::int32_t>* cell_of(const Vec3& p) const {
+    auto it = map_.find(key(idx(p.x()), idx(p.y()), idx(p.z())));
+    return it == map_.end() ? nullptr : &it->second;
+  }
+
+ private:
+  std::int64_t idx(double v) const { return static_cast<std::int64_t>(std::floor(v / cell_)); }
+  static std::uint64_t key(std::int64_t i, std::int64_t j, std::int64_t k) {
+    const std::uint64_t o = 1u << 20, m = (1u << 21) - 1;
+    return ((static_cast<std::uint64_t>(i + o) & m) << 42) |
+           ((static_cast<std::uint64_t>(j + o) & m) << 21) | (static_cast<std::uint64_t>(k + o) & m);
+  }
+  template <class F>
+  void for_cells(const Vec3& lo, const Vec3& hi, F&& f) {
+    const std::int64_t i0 = idx(lo.x()), i1 = idx(hi.x()), j0 = idx(lo.y()), j1 = idx(hi.y()),
+                       k0 = idx(lo.z()), k1 = idx(hi.z());
+    for (std::int64_t i = i0; i <= i1; ++i)
+      for (std::int64_t j = j0; j <= j1; ++j)
+        for (std::int64_t k = k0; k <= k1; ++k) f(key(i, j, k));
+  }
+  double cell_;
+  std::unordered_map<std::uint64_t, std::vector<std::int32_t>> map_;
+  std::vector<std::uint32_t> stamp_;
+  std::uint32_t epoch_ = 1;
+};
+
+// ---------------------------------------------------------------- profile helpers
+double keel_half_width(const RidgeDef& d) {
+  if (!d.keel_profile.empty())
+    return std::max(std::abs(d.keel_profile.front().position), std::abs(d.keel_profile.back().position));
+  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  if (d.keel_width > 0.0) return 0.5 * d.keel_width;
+  return std::max(0.0, d.keel_depth - dli) / std::tan(d.shoulder_slope_deg * kDeg);
+}
+double sail_half_width(const RidgeDef& d) {
+  if (d.sail_height <= 0.0) return 0.0;
+  const double fli = d.level_ice_thickness * (1.0 - d.ice_density / d.water_density);
+  if (d.sail_width > 0.0) return 0.5 * d.sail_width;
+  return std::max(0.0, d.sail_height - fli) / std::tan(d.sail_slope_deg * kDeg);
+}
+
+struct Placed {
+  Vec3 h, x;
+  Quat q;
+  Mat3 R;
+  Vec3 aabb;
+  int part;
+};
+
+double percentile95(std::vector<double>& v) {
+  if (v.empty()) return 0.0;
+  std::sort(v.begin(), v.end());
+  const std::size_t k = static_cast<std::size_t>(std::ceil(0.95 * static_cast<double>(v.size()))) - 1;
+  return v[std::min(k, v.size() - 1)];
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- public pieces
+void AspectLognormal::log_params(double& m, double& s) const {
+  if (of_log) {
+    m = mu;
+    s = sigma;
+  } else {
+    const double s2 = std::log(1.0 + sigma * sigma / (mu * mu));
+    s = std::sqrt(s2);
+    m = std::log(mu) - 0.5 * s2;
+  }
+}
+
+std::vector<double> sample_log_aspect(const AspectLognormal& a, std::size_t n, std::uint64_t seed) {
+  Rng rng(seed);
+  double m, s;
+  a.log_params(m, s);
+  std::vector<double> out(n);
+  for (double& v : out) v = sample_ln_r(rng, m, s);
+  return out;
+}
+
+double ice_draft(const RidgeDef& d, double x) {
+  const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
+                                                                  : d.level_ice_thickness;
+  return t * d.ice_density / d.water_density;
+}
+double ice_freeboard(const RidgeDef& d, double x) {
+  const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
+                                                                  : d.level_ice_thickness;
+  return t * (1.0 - d.ice_density / d.water_density);
+}
+
+double keel_target_depth(const RidgeDef& d, double x) {
+  if (!d.keel_profile.empty()) {
+    const auto& p = d.keel_profile;
+    if (x < p.front().position || x > p.back().position) return 0.0;
+    auto it = std::upper_bound(p.begin(), p.end(), x,
+                               [](double v, const ProfilePoint& q) { return v < q.position; });
+    if (it == p.end()) return p.back().depth;
+    const ProfilePoint& b = *it;
+    const ProfilePoint& a = *(it - 1);
+    const double t = (x - a.position) / (b.position - a.position);
+    return a.depth + t * (b.depth - a.depth);
+  }
+  const double hw = keel_half_width(d);
+  if (std::abs(x) >= hw) return 0.0;
+  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  return std::min(d.keel_depth, dli + (hw - std::abs(x)) * std::tan(d.shoulder_slope_deg * kDeg));
+}
+
+double sail_target_height(const RidgeDef& d, double x) {
+  const double hw = sail_half_width(d);
+  if (std::abs(x) >= hw) return 0.0;
+  const double fli = d.level_ice_thickness * (1.0 - d.ice_density / d.water_density);
+  return std::min(d.sail_height, fli + (hw - std::abs(x)) * std::tan(d.sail_slope_deg * kDeg));
+}
+
+double box_penetration(const Vec3& ha, const Vec3& xa, const Quat& qa, const Vec3& hb,
+                       const Vec3& xb, const Quat& qb) {
+  const double s = sat(ha, xa, qa.toRotationMatrix(), hb, xb, qb.toRotationMatrix(), nullptr);
+  return s > 0.0 ? s : 0.0;
+}
+
+std::vector<ProfilePoint> load_profile_csv(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw InputError(path, "cannot open the keel profile CSV");
+  std::vector<ProfilePoint> pts;
+  std::string line;
+  int lineno = 0;
+  bool first_content = true;
+  auto parse = [](const std::string& s, double& v) {
+    std::size_t a = s.find_first_not_of(" \t");
+    std::size_t b = s.find_last_not_of(" \t");
+    if (a == std::string::npos) return false;
+    const std::string t = s.substr(a, b - a + 1);
+    char* end = nullptr;
+    v = std::strtod(t.c_str(), &end);
+    return end == t.c_str() + t.size() && std::isfinite(v);
+  };
+  while (std::getline(in, line)) {
+    ++lineno;
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const std::size_t nb = line.find_first_not_of(" \t");
+    if (nb == std::string::npos || line[nb] == '#') continue;
+    std::vector<std::string> cols;
+    std::stringstream ss(line);
+    std::string c;
+    while (std::getline(ss, c, ',')) cols.push_back(c);
+    if (!line.empty() && line.back() == ',') cols.push_back("");
+    double x = 0.0, dep = 0.0;
+    const bool ok = cols.size() == 2 && parse(cols[0], x) && parse(cols[1], dep);
+    if (!ok) {
+      if (first_content) {  // header line
+        first_content = false;
+        continue;
+      }
+      throw InputError(path, "line " + std::to_string(lineno) +
+                                 ": expected two comma-separated numbers 'position_m, depth_m', got '" +
+                                 line + "'");
+    }
+    first_content = false;
+    if (dep < 0.0)
+      throw InputError(path, "line " + std::to_string(lineno) + ": depth_m must be >= 0 (m below the waterline)");
+    if (!pts.empty() && !(x > pts.back().position))
+      throw InputError(path, "line " + std::to_string(lineno) + ": position_m must increase strictly");
+    pts.push_back({x, dep});
+  }
+  if (pts.size() < 2)
+    throw InputError(path, "line " + std::to_string(lineno) + ": need at least two profile points");
+  return pts;
+}
+
+// ---------------------------------------------------------------- validation
+namespace {
+
+void validate(const RidgeDef& d, const std::string& P) {
+  auto req = [&](bool ok, const std::string& key, const std::string& msg) {
+    if (!ok) throw InputError(P + "/" + key, msg);
+  };
+  req(d.level_ice_thickness > 0.0, "level_ice_thickness", "must be > 0 (m)");
+  req(d.consolidated_layer_thickness > 0.0, "consolidated_layer_thickness", "must be > 0 (m)");
+  req(d.consolidated_layer_width >= 0.0, "consolidated_layer_width", "must be >= 0 (m)");
+  req(d.level_ice_margin >= 0.0, "level_ice_margin", "must be >= 0 (m)");
+  req(d.ice_density > 0.0 && d.ice_density < d.water_density, "ice_density",
+      "must be > 0 and below water_density (kg/m^3)");
+  req(d.water_density > 0.0, "water_density", "must be > 0 (kg/m^3)");
+  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  const double fli = d.level_ice_thickness - dli;
+  req(d.shoulder_slope_deg > 0.0 && d.shoulder_slope_deg < 90.0, "shoulder_slope_deg",
+      "must be in (0, 90) degrees");
+  req(d.sail_slope_deg > 0.0 && d.sail_slope_deg < 90.0, "sail_slope_deg", "must be in (0, 90) degrees");
+  if (d.keel_profile.empty()) {
+    req(d.keel_depth > dli, "keel_depth",
+        "must exceed the level-ice draft " + std::to_string(dli) + " m (m below the waterline)");
+    if (d.keel_width > 0.0) {
+      const double need = 2.0 * (d.keel_depth - dli) / std::tan(d.shoulder_slope_deg * kDeg);
+      req(d.keel_width >= need, "keel_width",
+          "is " + std::to_string(d.keel_width) + " m, but shoulders of " +
+              std::to_string(d.shoulder_slope_deg) + " deg need at least " + std::to_string(need) +
+              " m to reach keel_depth; widen it, steepen shoulder_slope_deg, or leave keel_width out "
+              "(null: triangle from the slope)");
+    }
+  } else {
+    req(d.keel_profile.size() >= 2, "keel_profile", "needs at least two points");
+  }
+  req(d.sail_height >= 0.0, "sail_height", "must be >= 0 (m above the waterline; 0: no sail)");
+  if (d.sail_height > 0.0) {
+    req(d.sail_height > fli, "sail_height",
+        "must exceed the level-ice freeboard " + std::to_string(fli) + " m, or be 0 (no sail)");
+    if (d.sail_width > 0.0) {
+      const double need = 2.0 * (d.sail_height - fli) / std::tan(d.sail_slope_deg * kDeg);
+      req(d.sail_width >= need, "sail_width",
+          "must be at least " + std::to_string(need) + " m for the sail slope; or null");
+    }
+  }
+  req(d.length > 0.0, "length", "must be > 0 (m)");
+  req(d.block_thickness > 0.0, "block_thickness", "must be > 0 (m)");
+  req(d.aspect.sigma >= 0.0, "aspect_lognormal/sigma", "must be >= 0");
+  req(d.aspect.of_log || d.aspect.mu > 0.0, "aspect_lognormal/mu", "must be > 0 when of = \"ratio\"");
+  req(d.width_fraction_min > 0.0 && d.width_fraction_min <= d.width_fraction_max &&
+          d.width_fraction_max <= 1.0,
+      "block_width_fraction", "must be [min, max] with 0 < min <= max <= 1");
+  req(d.max_tilt_deg >= 0.0 && d.max_tilt_deg <= 90.0, "max_tilt_deg", "must be in [0, 90] degrees");
+  req(d.fill_porosity >= 0.0 && d.fill_porosity < 0.9, "fill_porosity", "must be in [0, 0.9)");
+  const RidgeSettleDef& s = d.settle;
+  req(s.dt > 0.0 && s.dt <= 0.1, "settle/dt", "must be in (0, 0.1] s");
+  req(s.linear_drag * s.dt / (d.ice_density * d.block_thickness) < 1.0, "settle/dt",
+      "too large for the linear water drag: need linear_drag dt / (ice_density block_thickness) < 1");
+  req(s.solver_iterations >= 1, "settle/solver_iterations", "must be >= 1");
+  req(s.kinetic_energy_per_block > 0.0, "settle/kinetic_energy_per_block", "must be > 0 (J)");
+  req(s.min_time >= 0.0, "settle/min_time", "must be >= 0 (s)");
+  req(s.max_time >= s.min_time, "settle/max_time", "must be >= min_time (s)");
+  req(s.friction >= 0.0, "settle/friction", "must be >= 0");
+  req(s.linear_drag >= 0.0, "settle/linear_drag", "must be >= 0 (Pa s/m)");
+  req(s.quadratic_drag_cd >= 0.0, "settle/quadratic_drag_cd", "must be >= 0");
+  req(s.speed_cap_factor > 0.0 && s.speed_cap_factor <= 0.5, "settle/speed_cap_factor",
+      "must be in (0, 0.5]");
+  req(d.joints.gap > 0.0, "joints/gap", "must be > 0 (m)");
+  req(d.joints.min_area >= 0.0, "joints/min_area", "must be >= 0 (m^2)");
+  req(d.profile_bin > 0.0, "profile_bin", "must be > 0 (m)");
+  req(d.porosity_grid > 0.0, "porosity_grid", "must be > 0 (m)");
+}
+
+}  // namespace
+
+// ---------------------------------------------------------------- generator
+RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress) {
+  validate(def, "ridge");
+  const auto wall0 = std::chrono::steady_clock::now();
+  RidgeResult res;
+  res.def = def;
+  const RidgeDef& d = def;
+  Rng rng(d.seed);
+  double lnm, lns;
+  d.aspect.log_params(lnm, lns);
+  const double gap = d.joints.gap;
+  const double h_blk = d.block_thickness;
+
+  auto report = [&](const char* phase, double t, double ke, std::size_t n) {
+    if (!progress) return;
+    RidgeProgress p;
+    p.phase = phase;
+    p.time = t;
+    p.max_time = d.settle.max_time;
+    p.kinetic_energy_per_block = ke;
+    p.blocks = n;
+    progress(p);
+  };
+
+  // Ice sheet: fixed boxes (level ice left/right, consolidated layer in the middle).
+  const double kx = keel_half_width(d), sx = sail_half_width(d);
+  const double ice_half = std::max(kx, sx) + d.level_ice_margin;
+  const double wcl = std::min(d.consolidated_layer_width, 2.0 * ice_half);
+  auto ice_box = [&](double x0, double x1, double t, int part) {
+    if (x1 - x0 <= 0.0) return;
+    const double draft = t * d.ice_density / d.water_density;
+    IceBox b;
+    b.half_extents = Vec3(0.5 * (x1 - x0), 0.5 * d.length, 0.5 * t);
+    b.position = Vec3(0.5 * (x0 + x1), 0.5 * d.length, 0.5 * t - draft);
+    b.part = part;
+    res.ice.push_back(b);
+  };
+  ice_box(-ice_half, -0.5 * wcl, d.level_ice_thickness, 0);
+  ice_box(-0.5 * wcl, 0.5 * wcl, d.consolidated_layer_thickness, 1);
+  ice_box(0.5 * wcl, ice_half, d.level_ice_thickness, 0);
+
+  // Envelope thickness on a fine x grid -> volumes and the x sampling distribution.
+  const double dxs = 0.02;
+  auto make_cdf = [&](bool keel, double hw, std::vector<double>& xs, std::vector<double>& cdf) {
+    double lo = -hw, hi = hw;
+    if (keel && !d.keel_profile.empty()) lo = d.keel_profile.front().position, hi = d.keel_profile.back().position;
+    const int n = std::max(2, static_cast<int>(std::ceil((hi - lo) / dxs)));
+    xs.resize(n + 1);
+    cdf.assign(n + 1, 0.0);
+    for (int i = 0; i <= n; ++i) xs[i] = lo + (hi - lo) * i / n;
+    auto thick = [&](double x) {
+      return keel ? std::max(0.0, keel_target_depth(d, x) - ice_draft(d, x))
+                  : std::max(0.0, sail_target_height(d, x) - ice_freeboard(d, x));
+    };
+    for (int i = 1; i <= n; ++i)
+      cdf[i] = cdf[i - 1] + 0.5 * (thick(xs[i - 1]) + thick(xs[i])) * (xs[i] - xs[i - 1]);
+    return cdf.back() * d.length;  // envelope volume
+  };
+  std::vector<double> kxs, kcdf, sxs, scdf;
+  const double keel_env = make_cdf(true, kx, kxs, kcdf);
+  const double sail_env = d.sail_height > 0.0 ? make_cdf(false, sx, sxs, scdf) : 0.0;
+  res.stats.keel_target_volume = keel_env;
+  auto sample_x = [&](const std::vector<double>& xs, const std::vector<double>& cdf) {
+    const double u = rng.uniform() * cdf.back();
+    auto it = std::upper_bound(cdf.begin(), cdf.end(), u);
+    const std::size_t i = std::clamp<std::size_t>(it - cdf.begin(), 1, cdf.size() - 1);
+    const double c0 = cdf[i - 1], c1 = cdf[i];
+    const double t = c1 > c0 ? (u - c0) / (c1 - c0) : 0.5;
+    return xs[i - 1] + t * (xs[i] - xs[i - 1]);
+  };
+
+  // ---- placement: loose, non-overlapping piles hanging under / standing on the ice.
+  std::vector<Placed> placed;
+  HashGrid grid(2.0);
+  std::vector<std::int32_t> cand;
+  const double dz = std::min(0.1, 0.25 * h_blk);
+  auto overlaps = [&](const Placed& p) {
+    const Vec3 hp = p.h + Vec3::Constant(0.5 * gap);
+    grid.query(p.x - p.aabb - Vec3::Constant(gap), p.x + p.aabb + Vec3::Constant(gap), cand);
+    for (std::int32_t id : cand) {
+      const Placed& o = placed[id];
+      if (((p.x - o.x).cwiseAbs() - p.aabb - o.aabb).maxCoeff() > gap) continue;
+      if (sat(hp, p.x, p.R, o.h + Vec3::Constant(0.5 * gap), o.x, o.R, nullptr) > 0.0) return true;
+    }
+    return false;
+  };
+  auto fill = [&](bool keel, double volume_target) {
+    const std::vector<double>& xs = keel ? kxs : sxs;
+    const std::vector<double>& cdf = keel ? kcdf : scdf;
+    double vol = 0.0;
+    while (vol < volume_target) {
+      Placed p;
+      const double L = h_blk * std::exp(sample_ln_r(rng, lnm, lns));
+      const double B = L * rng.uniform(d.width_fraction_min, d.width_fraction_max);
+      p.h = Vec3(0.5 * L, 0.5 * B, 0.5 * h_blk);
+      p.part = keel ? 0 : 1;
+      double x = sample_x(xs, cdf);
+      if (d.max_tilt_deg >= 90.0) {
+        p.q = rng.rotation();
+      } else {  // random yaw, then a tilt of U(0, max) about a random horizontal axis
+        const double yaw = kTwoPi * rng.uniform(), az = kTwoPi * rng.uniform();
+        const double tilt = d.max_tilt_deg * kDeg * rng.uniform();
+        p.q = Quat(Eigen::AngleAxisd(tilt, Vec3(std::cos(az), std::sin(az), 0.0))) *
+              Quat(Eigen::AngleAxisd(yaw, Vec3::UnitZ()));
+      }
+      double y = rng.uniform();
+      p.R = p.q.toRotationMatrix();
+      p.aabb = aabb_half(p.h, p.R);
+      const double ylo = p.aabb.y() + gap, yhi = d.length - p.aabb.y() - gap;
+      y = ylo < yhi ? ylo + y * (yhi - ylo) : 0.5 * d.length;
+      // Start just clear of the ice over the block's x range, then walk away from it.
+      double ice_z = 0.0;
+      const double xl = x - p.aabb.x(), xr = x + p.aabb.x();
+      const bool over_cl = xl < 0.5 * wcl && xr > -0.5 * wcl;
+      const double t_ice = over_cl ? d.consolidated_layer_thickness : d.level_ice_thickness;
+      if (keel)
+        ice_z = -t_ice * d.ice_density / d.water_density - gap - p.aabb.z();
+      else
+        ice_z = t_ice * (1.0 - d.ice_density / d.water_density) + gap + p.aabb.z();
+      p.x = Vec3(x, y, ice_z);
+      while (overlaps(p)) p.x.z() += keel ? -dz : dz;
+      const std::int32_t id = static_cast<std::int32_t>(placed.size());
+      placed.push_back(p);
+      grid.insert(id, p.x - p.aabb - Vec3::Constant(gap), p.x + p.aabb + Vec3::Constant(gap));
+      vol += 8.0 * p.h.prod();
+      if (placed.size() % 2000 == 0) report("place", 0.0, 0.0, placed.size());
+    }
+    return vol;
+  };
+  res.stats.keel_block_volume = fill(true, (1.0 - d.fill_porosity) * keel_env);
+  res.stats.sail_block_volume = sail_env > 0.0 ? fill(false, (1.0 - d.fill_porosity) * sail_env) : 0.0;
+  const std::size_t n = placed.size();
+  report("place", 0.0, 0.0, n);
+
+  // ---- rigid world: ice and end walls fixed, blocks released at rest.
+  RigidWorldDef wd;
+  wd.dt = d.settle.dt;
+  wd.solver_iterations = d.settle.solver_iterations;
+  wd.water = true;
+  wd.water_level = 0.0;
+  wd.water_density = d.water_density;
+  wd.linear_drag = d.settle.linear_drag;
+  wd.quadratic_drag_cd = d.settle.quadratic_drag_cd;
+  wd.friction = d.settle.friction;
+  wd.restitution = 0.0;
+  wd.allow_sleep = d.settle.allow_sleep;
+  wd.sleep_linear_velocity = 0.02;
+  wd.sleep_angular_velocity = 0.02;
+  wd.freeze_bond_strength = 0.0;
+  RigidWorld world(wd);
+  double zmin = 0.0, zmax = 0.0;
+  for (const Placed& p : placed) {
+    zmin = std::min(zmin, p.x.z() - p.aabb.z());
+    zmax = std::max(zmax, p.x.z() + p.aabb.z());
+  }
+  for (const IceBox& b : res.ice) {
+    BlockDef bd;
+    bd.half_extents = b.half_extents;
+    bd.position = b.position;
+    bd.fixed = true;
+    world.add_block(bd);
+  }
+  if (d.end_walls) {
+    for (int s = 0; s < 2; ++s) {
+      BlockDef bd;
+      bd.half_extents = Vec3(ice_half + 5.0, 1.0, 0.5 * (zmax - zmin) + 5.0);
+      bd.position = Vec3(0.0, s == 0 ? -1.0 : d.length + 1.0, 0.5 * (zmax + zmin));
+      bd.fixed = true;
+      world.add_block(bd);
+    }
+  }
+  std::vector<BlockId> ids;
+  ids.reserve(n);
+  for (const Placed& p : placed) {
+    BlockDef bd;
+    bd.half_extents = p.h;
+    bd.position = p.x;
+    bd.orientation = p.q;
+    bd.density = d.ice_density;
+    ids.push_back(world.add_block(bd));
+  }
+
+  // ---- settle: step until the mean kinetic energy per block stays low for 1 s.
+  const double vcap = d.settle.speed_cap_factor * h_blk / d.settle.dt;
+  const int check_every = std::max(1, static_cast<int>(std::lround(0.25 / d.settle.dt)));
+  double below = 0.0, ke = 0.0;
+  bool settled = false;
+  std::uint64_t steps = 0;
+  while (n > 0) {
+    world.substep();
+    ++steps;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 v = world.velocity(ids[i]);
+      const Vec3 w = world.angular_velocity(ids[i]);
+      const double sv = v.norm(), sw = w.norm() * placed[i].h.maxCoeff();
+      if (sv > vcap || sw > vcap)
+        world.set_velocity(ids[i], sv > vcap ? Vec3(v * (vcap / sv)) : v,
+                           sw > vcap ? Vec3(w * (vcap / sw)) : w);
+    }
+    if (steps % check_every != 0) continue;
+    const double t = world.time();
+    ke = world.kinetic_energy() / static_cast<double>(n);
+    report("settle", t, ke, n);
+    if (t >= d.settle.min_time && ke < d.settle.kinetic_energy_per_block) {
+      below += check_every * d.settle.dt;
+      if (below >= 1.0 - 1e-9) {
+        settled = true;
+        break;
+      }
+    } else {
+      below = 0.0;
+    }
+    if (t >= d.settle.max_time) break;
+  }
+  res.stats.settled = settled || n == 0;
+  res.stats.settle_time = world.time();
+  res.stats.settle_steps = steps;
+  res.stats.final_kinetic_energy_per_block = ke;
+
+  res.blocks.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    RidgeBlock& b = res.blocks[i];
+    b.half_extents = placed[i].h;
+    b.position = world.position(ids[i]);
+    b.orientation = world.orientation(ids[i]);
+    if (b.orientation.w() < 0.0) b.orientation.coeffs() *= -1.0;  // canonical sign
+    b.part = placed[i].part;
+    placed[i].x = b.position;
+    placed[i].q = b.orientation;
+    placed[i].R = b.orientation.toRotationMatrix();
+    placed[i].aabb = aabb_half(placed[i].h, placed[i].R);
+    if (b.part == 0) ++res.stats.keel_blocks;
+    else ++res.stats.sail_blocks;
+  }
+
+  // ---- freeze joints and final overlap.
+  report("joints", res.stats.settle_time, ke, n);
+  HashGrid fgrid(2.0);
+  for (std::size_t i = 0; i < n; ++i)
+    fgrid.insert(static_cast<std::int32_t>(i), placed[i].x - placed[i].aabb - Vec3::Constant(gap),
+                 placed[i].x + placed[i].aabb + Vec3::Constant(gap));
+  const Vec3 hg = Vec3::Constant(0.5 * gap);
+  auto try_joint = [&](std::int32_t a, std::int32_t b, const Vec3& ha, const Vec3& xa, const Mat3& A,
+                       const Vec3& hb, const Vec3& xb, const Mat3& B) {
+    const double pen = sat(ha, xa, A, hb, xb, B, nullptr);
+    if (pen > 0.0) res.stats.max_final_overlap = std::max(res.stats.max_final_overlap, pen);
+    Vec3 axis = Vec3::UnitZ();
+    const double s = sat(ha + hg, xa, A, hb + hg, xb, B, &axis);
+    if (s <= 0.0) return;
+    Vec3 c = Vec3::Zero();
+    const double vol = box_intersection(ha + hg, xa, A, hb + hg, xb, B, &c);
+    const double area = vol / s;
+    if (!(area >= d.joints.min_area) || area <= 0.0) return;
+    RidgeJoint j;
+    j.a = a;
+    j.b = b;
+    j.anchor = c;
+    j.normal = axis;
+    j.area = area;
+    res.joints.push_back(j);
+  };
+  for (std::size_t i = 0; i < n; ++i) {
+    const Placed& p = placed[i];
+    fgrid.query(p.x - p.aabb - Vec3::Constant(gap), p.x + p.aabb + Vec3::Constant(gap), cand);
+    for (std::int32_t j : cand) {
+      if (j <= static_cast<std::int32_t>(i)) continue;
+      const Placed& o = placed[j];
+      if (((p.x - o.x).cwiseAbs() - p.aabb - o.aabb).maxCoeff() > gap) continue;
+      try_joint(static_cast<std::int32_t>(i), j, p.h, p.x, p.R, o.h, o.x, o.R);
+    }
+    for (std::size_t k = 0; k < res.ice.size(); ++k) {
+      const IceBox& ib = res.ice[k];
+      if (((p.x - ib.position).cwiseAbs() - p.aabb - ib.half_extents).maxCoeff() > gap) continue;
+      const std::size_t before = res.joints.size();
+      // The ice is b: normal from the block to the ice.
+      try_joint(static_cast<std::int32_t>(i), -1 - static_cast<std::int32_t>(k), p.h, p.x, p.R,
+                ib.half_extents, ib.position, Mat3::Identity());
+      if (!d.joints.to_ice && res.joints.size() > before) res.joints.pop_back();
+      else if (res.joints.size() > before) ++res.stats.ice_joints;
+    }
+  }
+  res.stats.joints = res.joints.size();
+
+  // ---- achieved profile: 95th percentile of block bottoms (keel) / tops (sail) per bin.
+  report("measure", res.stats.settle_time, ke, n);
+  double xlo = 0.0, xhi = 0.0;
+  for (const Placed& p : placed) xlo = std::min(xlo, p.x.x()), xhi = std::max(xhi, p.x.x());
+  xlo = std::min(xlo, -std::max(kx, sx));
+  xhi = std::max(xhi, std::max(kx, sx));
+  if (!d.keel_profile.empty()) {
+    xlo = std::min(xlo, d.keel_profile.front().position);
+    xhi = std::max(xhi, d.keel_profile.back().position);
+  }
+  const double pb = d.profile_bin;
+  const std::int64_t b0 = static_cast<std::int64_t>(std::floor(xlo / pb)),
+                     b1 = static_cast<std::int64_t>(std::floor(xhi / pb));
+  const std::size_t nb = static_cast<std::size_t>(b1 - b0 + 1);
+  std::vector<std::vector<double>> kbot(nb), stop(nb);
+  for (const Placed& p : placed) {
+    const std::size_t bi = static_cast<std::size_t>(static_cast<std::int64_t>(std::floor(p.x.x() / pb)) - b0);
+    if (p.part == 0) kbot[bi].push_back(-(p.x.z() - p.aabb.z()));
+    else stop[bi].push_back(p.x.z() + p.aabb.z());
+  }
+  RidgeProfile& pr = res.profile;
+  double se = 0.0;
+  std::size_t ne = 0;
+  for (std::size_t i = 0; i < nb; ++i) {
+    const double xc = (static_cast<double>(b0 + static_cast<std::int64_t>(i)) + 0.5) * pb;
+    pr.x.push_back(xc);
+    pr.keel_target.push_back(keel_target_depth(d, xc));
+    pr.keel_depth.push_back(percentile95(kbot[i]));
+    pr.sail_target.push_back(sail_target_height(d, xc));
+    pr.sail_height.push_back(percentile95(stop[i]));
+    if (pr.keel_target.back() > 0.0 || pr.keel_depth.back() > 0.0) {
+      const double e = pr.keel_depth.back() - pr.keel_target.back();
+      se += e * e;
+      ++ne;
+    }
+    res.stats.keel_depth_target = std::max(res.stats.keel_depth_target, pr.keel_target.back());
+    res.stats.keel_depth_achieved = std::max(res.stats.keel_depth_achieved, pr.keel_depth.back());
+    res.stats.sail_height_target = std::max(res.stats.sail_height_target, pr.sail_target.back());
+    res.stats.sail_height_achieved = std::max(res.stats.sail_height_achieved, pr.sail_height.back());
+  }
+  res.stats.keel_profile_rms_error = ne ? std::sqrt(se / static_cast<double>(ne)) : 0.0;
+
+  // ---- porosity: point count inside the achieved keel envelope.
+  const double g = d.porosity_grid;
+  std::uint64_t pts_all = 0, in_all = 0, pts_core = 0, in_core = 0;
+  const std::int64_t nx = static_cast<std::int64_t>(std::floor((xhi - xlo) / g));
+  const std::int64_t ny = static_cast<std::int64_t>(std::floor(d.length / g));
+  for (std::int64_t ix = 0; ix < nx; ++ix) {
+    const double x = xlo + (static_cast<double>(ix) + 0.5) * g;
+    const std::size_t bi = static_cast<std::size_t>(static_cast<std::int64_t>(std::floor(x / pb)) - b0);
+    if (bi >= nb) continue;
+    const double zb = -pr.keel_depth[bi], zt = -ice_draft(d, x);
+    if (!(zb < zt)) continue;
+    // Core: under the consolidated layer, upper 80 % of the local keel thickness (away
+    // from the rough bottom, where the 95th-percentile envelope is mostly water).
+    const bool core_x = std::abs(x) < 0.5 * d.consolidated_layer_width;
+    const double zcore = zt + 0.8 * (zb - zt);
+    for (std::int64_t iy = 0; iy < ny; ++iy) {
+      const double y = (static_cast<double>(iy) + 0.5) * g;
+      for (double z = zt - 0.5 * g; z > zb; z -= g) {
+        const Vec3 q(x, y, z);
+        bool inside = false;
+        if (const auto* c = fgrid.cell_of(q))
+          for (std::int32_t id : *c) {
+            const Placed& p = placed[id];
+            if (p.part != 0) continue;
+            const Vec3 l = p.R.transpose() * (q - p.x);
+            if (std::abs(l.x()) <= p.h.x() && std::abs(l.y()) <= p.h.y() && std::abs(l.z()) <= p.h.z()) {
+              inside = true;
+              break;
+            }
+          }
+        ++pts_all;
+        in_all += inside;
+        if (core_x && z > zcore) ++pts_core, in_core += inside;
+      }
+    }
+  }
+  res.stats.keel_porosity = pts_all ? 1.0 - static_cast<double>(in_all) / static_cast<double>(pts_all) : 0.0;
+  res.stats.core_porosity = pts_core ? 1.0 - static_cast<double>(in_core) / static_cast<double>(pts_core) : 0.0;
+  res.stats.wall_time =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  return res;
+}
+
+// ---------------------------------------------------------------- JSON
+namespace {
+
+class JsonReader {
+ public:
+  JsonReader(const nlohmann::json& j, std::string path, std::vector<std::string> allowed)
+      : j_(j), path_(std::move(path)) {
+    if (!j_.is_object()) throw InputError(path_, "must be a JSON object");
+    for (auto it = j_.begin(); it != j_.end(); ++it)
+      if (std::find(allowed.begin(), allowed.end(), it.key()) == allowed.end())
+        throw InputError(path_ + "/" + it.key(), "unknown key \"" + it.key() + "\"" +
+                                                     did_you_mean(it.key(), allowed));
+  }
+  bool has(const char* k) const { return j_.contains(k) && !j_.at(k).is_null(); }
+  std::string at(const char* k) const { return path_ + "/" + k; }
+  void number(const char* k, double& out) const {
+    if (!has(k)) return;
+    const auto& v = j_.at(k);
+    if (!v.is_number()) throw InputError(at(k), "must be a number");
+    out = v.get<double>();
+    if (!std::isfinite(out)) throw InputError(at(k), "must be finite");
+  }
+  void integer(const char* k, int& out) const {
+    if (!has(k)) return;
+    const auto& v = j_.at(k);
+    if (!v.is_number_integer()) throw InputError(at(k), "must be an integer");
+    out = v.get<int>();
+  }
+  void boolean(const char* k, bool& out) const {
+    if (!has(k)) return;
+    const auto& v = j_.at(k);
+    if (!v.is_boolean()) throw InputError(at(k), "must be true or false");
+    out = v.get<bool>();
+  }
+  void string(const char* k, std::string& out) const {
+    if (!has(k)) return;
+    const auto& v = j_.at(k);
+    if (!v.is_string()) throw InputError(at(k), "must be a string");
+    out = v.get<std::string>();
+  }
+  const nlohmann::json& get(const char* k) const { return j_.at(k); }
+
+ private:
+  const nlohmann::json& j_;
+  std::string path_;
+};
+
+}  // namespace
+
+RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, const std::string& base_dir) {
+  RidgeDef d;
+  const JsonReader r(j, P,
+                     {"name", "level_ice_thickness", "consolidated_layer_thickness",
+                      "consolidated_layer_width", "level_ice_margin", "ice_density", "water_density",
+                      "keel_depth", "keel_width", "shoulder_slope_deg", "keel_profile_csv",
+                      "keel_profile", "sail_height", "sail_width", "sail_slope_deg", "length",
+                      "end_walls", "block_thickness", "aspect_lognormal", "block_width_fraction",
+                      "max_tilt_deg", "fill_porosity", "seed", "settle", "joints", "profile_bin", "porosity_grid"});
+  r.string("name", d.name);
+  r.number("level_ice_thickness", d.level_ice_thickness);
+  r.number("consolidated_layer_thickness", d.consolidated_layer_thickness);
+  r.number("consolidated_layer_width", d.consolidated_layer_width);
+  r.number("level_ice_margin", d.level_ice_margin);
+  r.number("ice_density", d.ice_density);
+  r.number("water_density", d.water_density);
+  r.number("keel_depth", d.keel_depth);
+  if (r.has("keel_width")) {
+    r.number("keel_width", d.keel_width);
+    if (!(d.keel_width > 0.0)) throw InputError(r.at("keel_width"), "must be > 0 (m), or null");
+  }
+  r.number("shoulder_slope_deg", d.shoulder_slope_deg);
+  d.sail_slope_deg = d.shoulder_slope_deg;
+  d.sail_height = d.keel_depth / 4.4;
+  d.block_thickness = d.level_ice_thickness;
+  r.string("keel_profile_csv", d.keel_profile_csv);
+  if (r.has("keel_profile")) {
+    const auto& a = r.get("keel_profile");
+    if (!a.is_array()) throw InputError(r.at("keel_profile"), "must be an array of [position_m, depth_m]");
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      const auto& e = a[i];
+      const std::string ep = r.at("keel_profile") + "/" + std::to_string(i);
+      if (!e.is_array() || e.size() != 2 || !e[0].is_number() || !e[1].is_number())
+        throw InputError(ep, "must be [position_m, depth_m]");
+      ProfilePoint pt{e[0].get<double>(), e[1].get<double>()};
+      if (pt.depth < 0.0) throw InputError(ep, "depth must be >= 0");
+      if (!d.keel_profile.empty() && !(pt.position > d.keel_profile.back().position))
+        throw InputError(ep, "positions must increase strictly");
+      d.keel_profile.push_back(pt);
+    }
+  } else if (!d.keel_profile_csv.empty()) {
+    std::filesystem::path p(d.keel_profile_csv);
+    if (p.is_relative() && !base_dir.empty()) p = std::filesystem::path(base_dir) / p;
+    d.keel_profile = load_profile_csv(p.string());
+  }
+  r.number("sail_height", d.sail_height);
+  if (r.has("sail_width")) {
+    r.number("sail_width", d.sail_width);
+    if (!(d.sail_width > 0.0)) throw InputError(r.at("sail_width"), "must be > 0 (m), or null");
+  }
+  r.number("sail_slope_deg", d.sail_slope_deg);
+  r.number("length", d.length);
+  r.boolean("end_walls", d.end_walls);
+  r.number("block_thickness", d.block_thickness);
+  if (r.has("aspect_lognormal")) {
+    const JsonReader a(r.get("aspect_lognormal"), r.at("aspect_lognormal"), {"mu", "sigma", "of"});
+    a.number("mu", d.aspect.mu);
+    a.number("sigma", d.aspect.sigma);
+    std::string of = "log";
+    a.string("of", of);
+    if (of != "log" && of != "ratio")
+      throw InputError(a.at("of"), "must be \"log\" (ln(L/h) ~ N(mu, sigma)) or \"ratio\" (L/h has mean mu, sd sigma)");
+    d.aspect.of_log = of == "log";
+  }
+  if (r.has("block_width_fraction")) {
+    const auto& a = r.get("block_width_fraction");
+    if (!a.is_array() || a.size() != 2 || !a[0].is_number() || !a[1].is_number())
+      throw InputError(r.at("block_width_fraction"), "must be [min, max] (block width / length)");
+    d.width_fraction_min = a[0].get<double>();
+    d.width_fraction_max = a[1].get<double>();
+  }
+  r.number("max_tilt_deg", d.max_tilt_deg);
+  r.number("fill_porosity", d.fill_porosity);
+  if (r.has("seed")) {
+    const auto& v = r.get("seed");
+    if (!v.is_number_integer() || (v.is_number_integer() && !v.is_number_unsigned() && v.get<std::int64_t>() < 0))
+      throw InputError(r.at("seed"), "must be a non-negative integer");
+    d.seed = v.get<std::uint64_t>();
+  }
+  if (r.has("settle")) {
+    const JsonReader s(r.get("settle"), r.at("settle"),
+                       {"dt", "solver_iterations", "kinetic_energy_per_block", "min_time", "max_time",
+                        "friction", "linear_drag", "quadratic_drag_cd", "speed_cap_factor",
+                        "allow_sleep"});
+    s.number("dt", d.settle.dt);
+    s.integer("solver_iterations", d.settle.solver_iterations);
+    s.number("kinetic_energy_per_block", d.settle.kinetic_energy_per_block);
+    s.number("min_time", d.settle.min_time);
+    s.number("max_time", d.settle.max_time);
+    s.number("friction", d.settle.friction);
+    s.number("linear_drag", d.settle.linear_drag);
+    s.number("quadratic_drag_cd", d.settle.quadratic_drag_cd);
+    s.number("speed_cap_factor", d.settle.speed_cap_factor);
+    s.boolean("allow_sleep", d.settle.allow_sleep);
+  }
+  if (r.has("joints")) {
+    const JsonReader s(r.get("joints"), r.at("joints"), {"gap", "min_area", "to_ice"});
+    s.number("gap", d.joints.gap);
+    s.number("min_area", d.joints.min_area);
+    s.boolean("to_ice", d.joints.to_ice);
+  }
+  r.number("profile_bin", d.profile_bin);
+  r.number("porosity_grid", d.porosity_grid);
+  validate(d, P);
+  return d;
+}
+
+nlohmann::json ridge_def_to_json(const RidgeDef& d) {
+  nlohmann::json j;
+  j["name"] = d.name;
+  j["level_ice_thickness"] = d.level_ice_thickness;
+  j["consolidated_layer_thickness"] = d.consolidated_layer_thickness;
+  j["consolidated_layer_width"] = d.consolidated_layer_width;
+  j["level_ice_margin"] = d.level_ice_margin;
+  j["ice_density"] = d.ice_density;
+  j["water_density"] = d.water_density;
+  j["keel_depth"] = d.keel_depth;
+  j["keel_width"] = d.keel_width > 0.0 ? nlohmann::json(d.keel_width) : nlohmann::json(nullptr);
+  j["shoulder_slope_deg"] = d.shoulder_slope_deg;
+  j["keel_profile_csv"] = d.keel_profile_csv;
+  if (!d.keel_profile.empty()) {
+    nlohmann::json a = nlohmann::json::array();
+    for (const ProfilePoint& p : d.keel_profile) a.push_back({p.position, p.depth});
+    j["keel_profile"] = a;
+  }
+  j["sail_height"] = d.sail_height;
+  j["sail_width"] = d.sail_width > 0.0 ? nlohmann::json(d.sail_width) : nlohmann::json(nullptr);
+  j["sail_slope_deg"] = d.sail_slope_deg;
+  j["length"] = d.length;
+  j["end_walls"] = d.end_walls;
+  j["block_thickness"] = d.block_thickness;
+  j["aspect_lognormal"] = {{"mu", d.aspect.mu}, {"sigma", d.aspect.sigma},
+                           {"of", d.aspect.of_log ? "log" : "ratio"}};
+  j["block_width_fraction"] = {d.width_fraction_min, d.width_fraction_max};
+  j["max_tilt_deg"] = d.max_tilt_deg;
+  j["fill_porosity"] = d.fill_porosity;
+  j["seed"] = d.seed;
+  j["settle"] = {{"dt", d.settle.dt},
+                 {"solver_iterations", d.settle.solver_iterations},
+                 {"kinetic_energy_per_block", d.settle.kinetic_energy_per_block},
+                 {"min_time", d.settle.min_time},
+                 {"max_time", d.settle.max_time},
+                 {"friction", d.settle.friction},
+                 {"linear_drag", d.settle.linear_drag},
+                 {"quadratic_drag_cd", d.settle.quadratic_drag_cd},
+                 {"speed_cap_factor", d.settle.speed_cap_factor},
+                 {"allow_sleep", d.settle.allow_sleep}};
+  j["joints"] = {{"gap", d.joints.gap}, {"min_area", d.joints.min_area}, {"to_ice", d.joints.to_ice}};
+  j["profile_bin"] = d.profile_bin;
+  j["porosity_grid"] = d.porosity_grid;
+  return j;
+}
+
+nlohmann::json ridge_report(const RidgeResult& r) {
+  const RidgeStats& s = r.stats;
+  nlohmann::json j;
+  j["name"] = r.def.name;
+  j["blocks"] = {{"keel", s.keel_blocks}, {"sail", s.sail_blocks}, {"total", r.blocks.size()}};
+  j["joints"] = {{"total", s.joints}, {"to_ice", s.ice_joints}};
+  j["block_volume_m3"] = {{"keel", s.keel_block_volume}, {"sail", s.sail_block_volume}};
+  j["keel_target_volume_m3"] = s.keel_target_volume;
+  j["keel_porosity"] = s.keel_porosity;
+  j["core_porosity"] = s.core_porosity;
+  j["keel_depth_m"] = {{"target", s.keel_depth_target}, {"achieved_p95", s.keel_depth_achieved}};
+  j["sail_height_m"] = {{"target", s.sail_height_target}, {"achieved_p95", s.sail_height_achieved}};
+  j["keel_profile_rms_error_m"] = s.keel_profile_rms_error;
+  j["settle"] = {{"settled", s.settled},
+                 {"time_s", s.settle_time},
+                 {"steps", s.settle_steps},
+                 {"kinetic_energy_per_block_J", s.final_kinetic_energy_per_block}};
+  j["max_final_overlap_m"] = s.max_final_overlap;
+  j["wall_time_s"] = s.wall_time;
+  return j;
+}
+
+}  // namespace hs::rigid

@@ -1,0 +1,222 @@
+// Ridge generator (paper "Generation of Ice Ridges", DESIGN.md "Ridge"): level ice with a
+// consolidated layer (fixed boxes at the waterline), a keel of cuboid blocks released under
+// the ice that rise by buoyancy and settle, a sail of blocks dropped onto the ice, and
+// freeze joints between the touching blocks once everything is at rest. See docs/ridge.md.
+//
+// Frame: x across the ridge (interaction direction), y along the ridge (0..length), z up,
+// still water surface at z = 0. The ridge axis is x = 0. Units: SI (m, kg, s, J, Pa).
+//
+// Target envelope (keel; the sail is the same construction above the ice):
+//   draft of the ice  d_i(x) = t (rho_i / rho_w), t = consolidated_layer_thickness for
+//                     |x| < consolidated_layer_width/2, else level_ice_thickness;
+//   keel depth        D(x) = min(keel_depth, d_li + (W/2 - |x|) tan(theta))  for |x| < W/2
+//                     (W = keel_width, theta = shoulder_slope_deg, d_li = level-ice draft):
+//                     a trapezoid, or a triangle when W = 2 (keel_depth - d_li) / tan(theta)
+//                     (the default when keel_width is not given);
+//                     or, with a measured profile, D(x) = linear interpolation of the CSV
+//                     (0 outside it);
+//   envelope          the water between z = -D(x) and the ice underside z = -d_i(x).
+// Blocks: thickness h = block_thickness, length L = r h with ln r ~ N(mu, sigma)
+// (aspect "of": "log"; with "of": "ratio" r itself has mean mu and sd sigma), width
+// B = L u, u ~ U(width_fraction_min, width_fraction_max); ln r is truncated at mu +- 4 sigma.
+#pragma once
+
+#include "bonded/types.h"
+
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace hs::rigid {
+
+/// Aspect ratio r = L/h of the rubble blocks.
+struct AspectLognormal {
+  double mu = 1.06;    ///< "log": mean of ln r; "ratio": mean of r
+  double sigma = 0.5;  ///< "log": sd of ln r;   "ratio": sd of r
+  bool of_log = true;  ///< JSON "of": "log" (true) or "ratio" (false)
+  /// Parameters (m, s) of ln r ~ N(m, s) for either reading:
+  /// "ratio": s^2 = ln(1 + sigma^2/mu^2), m = ln(mu) - s^2/2.
+  void log_params(double& m, double& s) const;
+};
+
+/// One point of a measured keel profile: keel depth below the waterline at position x.
+struct ProfilePoint {
+  double position = 0.0;  ///< x, m
+  double depth = 0.0;     ///< m below the waterline, >= 0
+};
+
+/// Settling (rigid-body stage) settings.
+struct RidgeSettleDef {
+  /// Rigid step, s. Stability rule (docs/ridge.md): v_max dt <= 0.25 h_min with the speed
+  /// cap below, and the linear water drag explicit-stable: c_lin dt / (rho_i h_min) < 1.
+  double dt = 1.0 / 30.0;
+  int solver_iterations = 10;
+  /// Settled when the mean kinetic energy per block stays below this for 1 s, J.
+  double kinetic_energy_per_block = 0.01;
+  double min_time = 2.0;   ///< s, never stop before this
+  double max_time = 150.0; ///< s, stop here even if not settled (stats.settled = false)
+  double friction = 0.5;   ///< ice-ice Coulomb coefficient while settling
+  double linear_drag = 1000.0;      ///< water drag c_lin, Pa s/m (RigidWorldDef)
+  double quadratic_drag_cd = 1.0;   ///< water drag C_d
+  /// Speed cap while settling (generation only, not physics): |v| <= speed_cap_factor h_min/dt.
+  double speed_cap_factor = 0.25;
+  bool allow_sleep = true;          ///< Bullet deactivation of resting islands
+};
+
+/// Freeze-joint detection after settling.
+struct RidgeJointDef {
+  double gap = 0.02;        ///< m, blocks closer than this are "touching"
+  double min_area = 0.01;   ///< m^2, smaller contact patches get no joint
+  bool to_ice = true;       ///< also freeze blocks to the level ice / consolidated layer
+};
+
+struct RidgeDef {
+  std::string name;  ///< free text (scene name)
+  // Ice sheet.
+  double level_ice_thickness = 0.6;            ///< m
+  double consolidated_layer_thickness = 0.9;   ///< m
+  double consolidated_layer_width = 20.0;      ///< m, centred on x = 0
+  double level_ice_margin = 10.0;              ///< m of level ice beyond the keel/sail on each side
+  double ice_density = 910.0;                  ///< kg/m^3
+  double water_density = 1025.0;               ///< kg/m^3
+  // Keel.
+  double keel_depth = 7.9;                     ///< m below the waterline
+  double keel_width = -1.0;                    ///< m at the ice underside; < 0: triangle from the slope
+  double shoulder_slope_deg = 6.0;             ///< shoulder slope, deg
+  std::string keel_profile_csv;                ///< measured profile (replaces the trapezoid) or ""
+  std::vector<ProfilePoint> keel_profile;      ///< its points (loaded by ridge_def_from_json)
+  // Sail.
+  double sail_height = 7.9 / 4.4;              ///< m above the waterline; 0: no sail
+  double sail_width = -1.0;                    ///< m at the ice top; < 0: triangle from the slope
+  double sail_slope_deg = 6.0;                 ///< deg
+  // Along the ridge.
+  double length = 200.0;                       ///< m (y extent)
+  bool end_walls = true;                       ///< fixed walls at y = 0 and y = length while settling
+  // Blocks.
+  double block_thickness = 0.6;                ///< m (default: level ice thickness)
+  AspectLognormal aspect;
+  double width_fraction_min = 0.5;             ///< block width / length ~ U(min, max)
+  double width_fraction_max = 1.0;
+  /// Initial block orientation: >= 90 uniformly random; otherwise random yaw and a tilt
+  /// of U(0, max_tilt_deg) about a random horizontal axis (flatter, denser rubble).
+  double max_tilt_deg = 90.0;
+  /// Porosity assumed when counting how many blocks fill the target envelope:
+  /// block volume = (1 - fill_porosity) x envelope volume (keel and sail separately).
+  double fill_porosity = 0.3;
+  std::uint64_t seed = 1;
+  RidgeSettleDef settle;
+  RidgeJointDef joints;
+  double profile_bin = 1.0;                    ///< m, x bin of the achieved profile
+  double porosity_grid = 0.25;                 ///< m, point spacing of the porosity count
+};
+
+/// A settled block.
+struct RidgeBlock {
+  Vec3 half_extents = Vec3::Zero();
+  Vec3 position = Vec3::Zero();
+  Quat orientation = Quat::Identity();
+  std::int32_t part = 0;  ///< 0 keel, 1 sail
+};
+
+/// A fixed box of the ice sheet.
+struct IceBox {
+  Vec3 half_extents = Vec3::Zero();
+  Vec3 position = Vec3::Zero();
+  std::int32_t part = 0;  ///< 0 level ice, 1 consolidated layer
+};
+
+/// Freeze joint between blocks[a] and blocks[b] (b < 0: ice box -1 - b).
+struct RidgeJoint {
+  std::int32_t a = 0, b = 0;
+  Vec3 anchor = Vec3::Zero();          ///< centroid of the contact region, world
+  Vec3 normal = Vec3::UnitZ();         ///< unit, from a to b
+  double area = 0.0;                   ///< m^2, contact patch estimate
+};
+
+/// Target vs achieved profile, per x bin (centres).
+struct RidgeProfile {
+  std::vector<double> x;              ///< bin centres, m
+  std::vector<double> keel_target;    ///< D(x), m below the waterline (0: no keel)
+  std::vector<double> keel_depth;     ///< 95th percentile of block bottoms, m below the waterline (0: none)
+  std::vector<double> sail_target;    ///< m above the waterline (0: no sail)
+  std::vector<double> sail_height;    ///< 95th percentile of block tops, m (0: none)
+};
+
+struct RidgeStats {
+  std::size_t keel_blocks = 0, sail_blocks = 0, joints = 0, ice_joints = 0;
+  double keel_block_volume = 0.0, sail_block_volume = 0.0;  ///< m^3
+  double keel_target_volume = 0.0;    ///< target envelope volume, m^3
+  /// 1 - (block volume inside) / (envelope volume), counted on a point grid inside the
+  /// achieved keel envelope (ice underside down to the achieved profile).
+  double keel_porosity = 0.0;
+  /// Same, only under the consolidated layer (|x| < consolidated_layer_width / 2).
+  double core_porosity = 0.0;
+  double keel_depth_target = 0.0, keel_depth_achieved = 0.0;  ///< max over bins, m
+  double sail_height_target = 0.0, sail_height_achieved = 0.0;
+  double keel_profile_rms_error = 0.0;  ///< m, over bins where the target or achieved keel > 0
+  double settle_time = 0.0;             ///< simulated s
+  std::uint64_t settle_steps = 0;
+  bool settled = false;                 ///< KE criterion met before max_time
+  double final_kinetic_energy_per_block = 0.0;  ///< J
+  double max_final_overlap = 0.0;       ///< m, largest pairwise SAT penetration after settling
+  double wall_time = 0.0;               ///< s (not reproducible; excluded from comparisons)
+};
+
+struct RidgeResult {
+  RidgeDef def;
+  std::vector<RidgeBlock> blocks;
+  std::vector<RidgeJoint> joints;
+  std::vector<IceBox> ice;
+  RidgeProfile profile;
+  RidgeStats stats;
+};
+
+struct RidgeProgress {
+  const char* phase = "";  ///< "place", "settle", "joints", "measure"
+  double time = 0.0;       ///< simulated s (settle)
+  double max_time = 0.0;
+  double kinetic_energy_per_block = 0.0;
+  std::size_t blocks = 0;
+};
+using RidgeProgressFn = std::function<void(const RidgeProgress&)>;
+
+/// Builds the ridge. Same def (seed included) -> identical result bit for bit (wall_time
+/// aside). Throws hs::InputError for an impossible definition.
+RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress = {});
+
+// ---- pieces, public for tests and tools ----
+
+/// Target keel depth below the waterline at x (0 where there is no keel).
+double keel_target_depth(const RidgeDef& def, double x);
+/// Target sail height above the waterline at x (0 where there is no sail).
+double sail_target_height(const RidgeDef& def, double x);
+/// Draft (z of the underside = -draft) and freeboard of the ice at x.
+double ice_draft(const RidgeDef& def, double x);
+double ice_freeboard(const RidgeDef& def, double x);
+
+/// n samples of ln(L/h) from the generator's sampler (seeded, truncated at +-4 sigma).
+std::vector<double> sample_log_aspect(const AspectLognormal& a, std::size_t n, std::uint64_t seed);
+
+/// Reads a keel profile CSV: two columns position_m, depth_m (comma separated, an optional
+/// header line, '#' comments and blank lines allowed), positions strictly increasing,
+/// depths >= 0. Throws hs::InputError(path, "line N: ...") on any malformed line.
+std::vector<ProfilePoint> load_profile_csv(const std::string& path);
+
+/// Penetration depth of two oriented boxes (separating axis test; 0 when separated).
+double box_penetration(const Vec3& ha, const Vec3& xa, const Quat& qa, const Vec3& hb,
+                       const Vec3& xb, const Quat& qb);
+
+/// RidgeDef from the JSON object at json_path_prefix (e.g. "/ridge"). Strict: wrong types,
+/// out-of-range values and unknown keys (with a did-you-mean hint) throw hs::InputError
+/// naming the JSON path. A relative keel_profile_csv is resolved against base_dir.
+RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& json_path_prefix,
+                             const std::string& base_dir = "");
+/// The full definition as JSON (every key; ridge_def_from_json reads it back exactly).
+nlohmann::json ridge_def_to_json(const RidgeDef& def);
+/// Summary: counts, porosity, keel depth / sail height target vs achieved, settle info.
+nlohmann::json ridge_report(const RidgeResult& r);
+
+}  // namespace hs::rigid

@@ -1,0 +1,34 @@
+// Ridge file (HDF5): a generated ridge that any scene can load.
+//
+// Layout (file_format "hybridsim-ridge/1", HDF5 1.8 format, all doubles native 64-bit):
+//   /ridge                       attributes file_format, definition (RidgeDef as JSON,
+//                                ridge_def_to_json), stats (RidgeStats as JSON), report
+//                                (ridge_report, for people)
+//   /ridge/blocks/half_extents   n x 3  m
+//   /ridge/blocks/position       n x 3  m (centre)
+//   /ridge/blocks/orientation    n x 4  quaternion w, x, y, z (body -> world, w >= 0)
+//   /ridge/blocks/part           n      int32: 0 keel, 1 sail
+//   /ridge/joints/blocks         m x 2  int32 a, b (block rows; b < 0: ice box -1 - b)
+//   /ridge/joints/anchor         m x 3  m
+//   /ridge/joints/normal         m x 3  unit, from a to b
+//   /ridge/joints/area           m      m^2
+//   /ridge/ice/half_extents      k x 3  fixed, axis-aligned ice boxes
+//   /ridge/ice/position          k x 3
+//   /ridge/ice/part              k      int32: 0 level ice, 1 consolidated layer
+//   /ridge/profile/{x, keel_target, keel_depth, sail_target, sail_height}   1-D, m
+// save_ridge -> load_ridge gives back the same RidgeResult bit for bit.
+#pragma once
+
+#include "rigid/ridge.h"
+
+#include <string>
+
+namespace hs::rigid {
+
+/// Writes (truncates) the ridge file. Throws hs::InputError(path, ...) if it cannot be
+/// created, std::runtime_error on other HDF5 failures.
+void save_ridge(const std::string& path, const RidgeResult& r);
+/// Reads a ridge file. Throws hs::InputError(path, ...) for a missing or malformed file.
+RidgeResult load_ridge(const std::string& path);
+
+}  // namespace hs::rigid

@@ -1,0 +1,282 @@
+// Ridge generator: reproducibility, porosity/profile sanity, no overlap after settling,
+// block-size sampling, CSV profile errors, JSON validation, HDF5 round trip.
+#include "common/error.h"
+#include "rigid/ridge.h"
+#include "rigid/ridge_io.h"
+
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <cstring>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <vector>
+
+namespace hs::rigid {
+namespace {
+
+// A small ridge (steep 30 deg shoulders, 3 m long, 0.2 m blocks): ~150 blocks, ~1 s.
+RidgeDef small_def(std::uint64_t seed = 11) {
+  RidgeDef d;
+  d.name = "small";
+  d.level_ice_thickness = 0.3;
+  d.consolidated_layer_thickness = 0.45;
+  d.consolidated_layer_width = 2.0;
+  d.level_ice_margin = 2.0;
+  d.keel_depth = 2.0;
+  d.shoulder_slope_deg = 30.0;
+  d.sail_height = 0.7;
+  d.sail_slope_deg = 30.0;
+  d.length = 3.0;
+  d.block_thickness = 0.2;
+  d.seed = seed;
+  d.settle.max_time = 60.0;
+  d.profile_bin = 0.5;
+  d.porosity_grid = 0.1;
+  return d;
+}
+
+const RidgeResult& small_ridge() {
+  static const RidgeResult r = generate_ridge(small_def());
+  return r;
+}
+
+std::vector<double> flatten(const RidgeResult& r) {
+  std::vector<double> v;
+  for (const RidgeBlock& b : r.blocks) {
+    for (int k = 0; k < 3; ++k) v.push_back(b.half_extents[k]);
+    for (int k = 0; k < 3; ++k) v.push_back(b.position[k]);
+    v.insert(v.end(), {b.orientation.w(), b.orientation.x(), b.orientation.y(), b.orientation.z()});
+    v.push_back(b.part);
+  }
+  for (const RidgeJoint& j : r.joints) {
+    v.insert(v.end(), {double(j.a), double(j.b), j.area});
+    for (int k = 0; k < 3; ++k) v.push_back(j.anchor[k]), v.push_back(j.normal[k]);
+  }
+  for (double x : r.profile.keel_depth) v.push_back(x);
+  for (double x : r.profile.sail_height) v.push_back(x);
+  v.push_back(r.stats.keel_porosity);
+  v.push_back(r.stats.core_porosity);
+  v.push_back(r.stats.settle_time);
+  return v;
+}
+
+bool bit_equal(const std::vector<double>& a, const std::vector<double>& b) {
+  return a.size() == b.size() && std::memcmp(a.data(), b.data(), a.size() * sizeof(double)) == 0;
+}
+
+TEST(Ridge, SmallRidgeIsSane) {
+  const RidgeResult& r = small_ridge();
+  const RidgeStats& s = r.stats;
+  std::printf("[ ridge ] %zu keel + %zu sail blocks, %zu joints (%zu to ice), porosity %.3f (core %.3f), "
+              "keel depth %.2f of %.2f m, sail %.2f of %.2f m, rms %.2f m, settled %d at %.1f s, "
+              "KE/block %.2e J, overlap %.4f m, %.1f s wall\n",
+              s.keel_blocks, s.sail_blocks, s.joints, s.ice_joints, s.keel_porosity, s.core_porosity,
+              s.keel_depth_achieved, s.keel_depth_target, s.sail_height_achieved, s.sail_height_target,
+              s.keel_profile_rms_error, int(s.settled), s.settle_time,
+              s.final_kinetic_energy_per_block, s.max_final_overlap, s.wall_time);
+  EXPECT_TRUE(s.settled);
+  EXPECT_GT(s.keel_blocks, 30u);
+  EXPECT_GT(s.sail_blocks, 3u);
+  EXPECT_GT(s.joints, s.keel_blocks / 2);
+  // A keel only ~10 blocks deep, between end walls 3 m apart, packs loosely (docs/ridge.md).
+  EXPECT_GT(s.keel_porosity, 0.2);
+  EXPECT_LT(s.keel_porosity, 0.75);
+  EXPECT_GT(s.core_porosity, 0.2);
+  EXPECT_LT(s.core_porosity, 0.65);
+  EXPECT_GT(s.keel_depth_achieved, 0.6 * s.keel_depth_target);
+  EXPECT_LT(s.keel_depth_achieved, 1.6 * s.keel_depth_target);
+  EXPECT_LT(s.keel_profile_rms_error, 0.5 * s.keel_depth_target);
+  EXPECT_GT(s.sail_height_achieved, 0.3);
+  // Keel blocks float up against the ice, sail blocks rest on it.
+  for (const RidgeBlock& b : r.blocks) {
+    if (b.part == 0) EXPECT_LT(b.position.z(), 0.0);
+    else EXPECT_GT(b.position.z(), 0.0);
+  }
+  for (const RidgeJoint& j : r.joints) {
+    EXPECT_GT(j.area, 0.0);
+    EXPECT_NEAR(j.normal.norm(), 1.0, 1e-9);
+  }
+}
+
+TEST(Ridge, BlocksDoNotOverlapAfterSettling) {
+  const RidgeResult& r = small_ridge();
+  double worst = 0.0;
+  for (std::size_t i = 0; i < r.blocks.size(); ++i) {
+    const RidgeBlock& a = r.blocks[i];
+    for (std::size_t k = i + 1; k < r.blocks.size(); ++k) {
+      const RidgeBlock& b = r.blocks[k];
+      worst = std::max(worst, box_penetration(a.half_extents, a.position, a.orientation, b.half_extents,
+                                              b.position, b.orientation));
+    }
+    for (const IceBox& ice : r.ice)
+      worst = std::max(worst, box_penetration(a.half_extents, a.position, a.orientation,
+                                              ice.half_extents, ice.position, Quat::Identity()));
+  }
+  EXPECT_LT(worst, 0.03);  // m: Bullet's resting penetration, << 0.2 m block thickness
+}
+
+TEST(Ridge, SameSeedIdenticalDifferentSeedDifferent) {
+  const RidgeResult again = generate_ridge(small_def(11));
+  EXPECT_TRUE(bit_equal(flatten(small_ridge()), flatten(again)));
+  const RidgeResult other = generate_ridge(small_def(12));
+  EXPECT_FALSE(bit_equal(flatten(small_ridge()), flatten(other)));
+}
+
+TEST(Ridge, SaveLoadRoundTripBitExact) {
+  const RidgeResult& r = small_ridge();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("hs_ridge_" + std::to_string(::getpid()) + ".h5")).string();
+  save_ridge(path, r);
+  const RidgeResult l = load_ridge(path);
+  std::filesystem::remove(path);
+  EXPECT_TRUE(bit_equal(flatten(r), flatten(l)));
+  ASSERT_EQ(l.ice.size(), r.ice.size());
+  for (std::size_t i = 0; i < r.ice.size(); ++i) {
+    EXPECT_EQ(l.ice[i].half_extents, r.ice[i].half_extents);
+    EXPECT_EQ(l.ice[i].position, r.ice[i].position);
+    EXPECT_EQ(l.ice[i].part, r.ice[i].part);
+  }
+  EXPECT_EQ(ridge_def_to_json(l.def), ridge_def_to_json(r.def));
+  EXPECT_EQ(ridge_report(l).dump(), ridge_report(r).dump());
+  EXPECT_TRUE(bit_equal(l.profile.x, r.profile.x));
+  EXPECT_TRUE(bit_equal(l.profile.keel_target, r.profile.keel_target));
+  EXPECT_TRUE(bit_equal(l.profile.sail_target, r.profile.sail_target));
+  EXPECT_THROW(load_ridge(path), InputError);
+}
+
+TEST(Ridge, LognormalAspectMatchesRequest) {
+  const std::size_t n = 10000;
+  AspectLognormal a;  // ln(L/h) ~ N(1.06, 0.5)
+  const std::vector<double> s = sample_log_aspect(a, n, 5);
+  double m = 0.0, v = 0.0;
+  for (double x : s) m += x;
+  m /= n;
+  for (double x : s) v += (x - m) * (x - m);
+  const double sd = std::sqrt(v / (n - 1));
+  // Standard errors: 0.5/sqrt(n) = 0.005 for the mean, 0.5/sqrt(2n) = 0.0035 for the sd.
+  EXPECT_NEAR(m, 1.06, 4 * 0.005);
+  EXPECT_NEAR(sd, 0.5, 4 * 0.0035);
+  std::vector<double> sorted = s;
+  std::sort(sorted.begin(), sorted.end());
+  EXPECT_NEAR(std::exp(sorted[n / 2]), std::exp(1.06), 0.1);  // median L/h ~ 2.89
+
+  AspectLognormal r;  // L/h itself has mean 1.06, sd 0.5
+  r.of_log = false;
+  const std::vector<double> t = sample_log_aspect(r, n, 6);
+  double rm = 0.0, rv = 0.0;
+  for (double x : t) rm += std::exp(x);
+  rm /= n;
+  for (double x : t) rv += (std::exp(x) - rm) * (std::exp(x) - rm);
+  EXPECT_NEAR(rm, 1.06, 4 * 0.5 / std::sqrt(double(n)));
+  EXPECT_NEAR(std::sqrt(rv / (n - 1)), 0.5, 0.03);  // skewed: looser than the normal rule
+}
+
+std::string write_tmp(const std::string& name, const std::string& text) {
+  const std::string p = (std::filesystem::temp_directory_path() / name).string();
+  std::ofstream(p) << text;
+  return p;
+}
+
+TEST(Ridge, CsvProfile) {
+  const std::string good = write_tmp("hs_ridge_good.csv", "position_m,depth_m\n# measured\n-20, 0.5\n0,6\n20,0.5\n");
+  const auto pts = load_profile_csv(good);
+  ASSERT_EQ(pts.size(), 3u);
+  RidgeDef d;
+  d.keel_profile = pts;
+  EXPECT_DOUBLE_EQ(keel_target_depth(d, 0.0), 6.0);
+  EXPECT_DOUBLE_EQ(keel_target_depth(d, -10.0), 3.25);
+  EXPECT_DOUBLE_EQ(keel_target_depth(d, 25.0), 0.0);
+
+  const std::string bad = write_tmp("hs_ridge_bad.csv", "position_m,depth_m\n-20,0.5\n0,six\n20,0.5\n");
+  try {
+    load_profile_csv(bad);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_EQ(e.path(), bad);
+    EXPECT_NE(std::string(e.what()).find("line 3"), std::string::npos) << e.what();
+  }
+  const std::string unsorted = write_tmp("hs_ridge_unsorted.csv", "0,1\n5,2\n4,2\n");
+  try {
+    load_profile_csv(unsorted);
+    FAIL() << "no error";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("line 3"), std::string::npos) << e.what();
+  }
+  // Through JSON: a relative path resolves against base_dir; the points are kept.
+  const auto tmp = std::filesystem::temp_directory_path().string();
+  const RidgeDef j = ridge_def_from_json({{"keel_profile_csv", "hs_ridge_good.csv"}}, "/ridge", tmp);
+  EXPECT_EQ(j.keel_profile.size(), 3u);
+  EXPECT_THROW(ridge_def_from_json({{"keel_profile_csv", "hs_ridge_bad.csv"}}, "/ridge", tmp), InputError);
+  std::filesystem::remove(good);
+  std::filesystem::remove(bad);
+  std::filesystem::remove(unsorted);
+}
+
+TEST(Ridge, JsonValidation) {
+  const RidgeDef d = ridge_def_from_json(nlohmann::json::object(), "/ridge");
+  EXPECT_DOUBLE_EQ(d.keel_depth, 7.9);
+  EXPECT_DOUBLE_EQ(d.sail_height, 7.9 / 4.4);
+  EXPECT_DOUBLE_EQ(d.block_thickness, 0.6);
+  const RidgeDef e = ridge_def_from_json({{"keel_depth", 4.4}, {"level_ice_thickness", 0.5},
+                                          {"aspect_lognormal", {{"mu", 1.06}, {"sigma", 0.5}, {"of", "ratio"}}}},
+                                         "/ridge");
+  EXPECT_DOUBLE_EQ(e.sail_height, 1.0);
+  EXPECT_DOUBLE_EQ(e.block_thickness, 0.5);
+  EXPECT_FALSE(e.aspect.of_log);
+  auto path_of = [](const nlohmann::json& j) {
+    try {
+      ridge_def_from_json(j, "/ridge");
+    } catch (const InputError& e) {
+      return e.path() + " | " + e.what();
+    }
+    return std::string("no error");
+  };
+  EXPECT_NE(path_of({{"keel_dept", 5}}).find("/ridge/keel_dept | "), std::string::npos);
+  EXPECT_NE(path_of({{"keel_dept", 5}}).find("did you mean \"keel_depth\""), std::string::npos);
+  EXPECT_NE(path_of({{"settle", {{"max_tme", 5}}}}).find("/ridge/settle/max_tme"), std::string::npos);
+  EXPECT_NE(path_of({{"keel_depth", "deep"}}).find("/ridge/keel_depth | "), std::string::npos);
+  EXPECT_NE(path_of({{"keel_width", 30}}).find("/ridge/keel_width | "), std::string::npos);
+  EXPECT_NE(path_of({{"aspect_lognormal", {{"of", "linear"}}}}).find("/ridge/aspect_lognormal/of"),
+            std::string::npos);
+  EXPECT_NE(path_of({{"seed", -1}}).find("/ridge/seed"), std::string::npos);
+  EXPECT_NE(path_of({{"settle", {{"dt", 0.5}}}}).find("/ridge/settle/dt"), std::string::npos);
+  // Full round trip through JSON.
+  const RidgeDef s = small_def();
+  EXPECT_EQ(ridge_def_to_json(ridge_def_from_json(ridge_def_to_json(s), "/ridge")), ridge_def_to_json(s));
+}
+
+}  // namespace
+}  // namespace hs::rigid
+
+// Manual driver (not run by ctest): builds the ridge of a scene file and saves it.
+//   HS_RIDGE_SCENE=scenes/ridge_keel_8m.json HS_RIDGE_OUT=ridge.h5 (one line)
+//     test_rigid --gtest_also_run_disabled_tests --gtest_filter=RidgeManual.*
+namespace hs::rigid {
+namespace {
+TEST(RidgeManual, DISABLED_BuildScene) {
+  const char* scene = std::getenv("HS_RIDGE_SCENE");
+  const char* out = std::getenv("HS_RIDGE_OUT");
+  ASSERT_NE(scene, nullptr) << "set HS_RIDGE_SCENE";
+  std::ifstream in(scene);
+  ASSERT_TRUE(in) << scene;
+  const nlohmann::json j = nlohmann::json::parse(in);
+  RidgeDef d = ridge_def_from_json(j.at("ridge"), "/ridge",
+                                   std::filesystem::path(scene).parent_path().string());
+  if (j.contains("name") && d.name.empty()) d.name = j["name"].get<std::string>();
+  double last = -1e9;
+  const RidgeResult r = generate_ridge(d, [&](const RidgeProgress& p) {
+    if (std::string(p.phase) == "settle" && p.time - last < 2.0) return;
+    last = p.time;
+    std::fprintf(stderr, "[ridge] %-7s t=%6.2f s  KE/block=%.3e J  blocks=%zu\n", p.phase, p.time,
+                 p.kinetic_energy_per_block, p.blocks);
+  });
+  std::printf("%s\n", ridge_report(r).dump(2).c_str());
+  if (out) save_ridge(out, r);
+}
+}  // namespace
+}  // namespace hs::rigid
