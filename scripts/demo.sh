@@ -5,7 +5,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 SCENE="${1:-scenes/demo_bonded_ice.json}"
-bash scripts/build.sh
+bash scripts/build.sh hybridsim
 mkdir -p out
 name="$(basename "${SCENE%.json}")"
 ./build/hybridsim run "$SCENE" -o "out/${name}.h5"
