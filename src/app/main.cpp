@@ -1,6 +1,7 @@
 // hybridsim command line.
 //   hybridsim scene.json [-o out.h5] [--set path=value]...   (same as `hybridsim run ...`)
 //   hybridsim check scene.json [--set path=value]...          validate, print derived figures
+//   hybridsim iso FILE.json                                   ISO 19906 estimate as JSON
 //   hybridsim bench NAME                                      built-in benchmark (JSON line)
 //   hybridsim --version
 // Exit codes: 0 ok, 1 internal error, 2 bad input (hs::InputError), 3 simulation unstable
@@ -48,6 +49,9 @@ int main(int argc, char** argv) {
   CLI::App* check = app.add_subcommand("check", "validate a scene and print particle and bond counts, dt, "
                                                  "memory and run-time estimates");
   add_common(check, false);
+  CLI::App* iso = app.add_subcommand("iso", "print the ISO 19906 cone load (JSON, N) for a scene (its ice and pier) "
+                                             "or for a plain object of ISO inputs (docs/iso19906.md)");
+  add_common(iso, false);
   CLI::App* bench = app.add_subcommand("bench", "run a built-in benchmark and print one JSON line");
   bench->add_option("name", bench_name, "benchmark name")->required();
 
@@ -64,6 +68,7 @@ int main(int argc, char** argv) {
       std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
       return 2;
     }
+    if (*iso) return hs::app::iso_command(opt, std::cout);
     if (*check) return hs::app::check_scene(opt, std::cout, std::cerr);
     return hs::app::run_scene(opt, std::cout, stderr);
   } catch (const hs::InputError& e) {

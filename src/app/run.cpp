@@ -1,10 +1,13 @@
 #include "app/run.h"
 
+#include "analysis/iso19906.h"
+#include "analysis/pile_height.h"
 #include "bonded/engine.h"
 #include "common/error.h"
 #include "io/run_file.h"
 #include "scene/scene.h"
 
+#include <hdf5.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -12,7 +15,9 @@
 #include <cmath>
 #include <cstdint>
 #include <iomanip>
+#include <numeric>
 #include <sstream>
+#include <stdexcept>
 
 namespace hs::app {
 
@@ -64,6 +69,147 @@ double memory_estimate_bytes(std::size_t n, std::size_t bonds, std::size_t walls
   return n * per_particle + bonds * (sizeof(bonded::Bond) + 8 /*partner lists*/);
 }
 
+/// Pieces of ice: connected components of the particles over intact bonds.
+struct Pieces {
+  std::vector<std::int64_t> size;  ///< particles per piece, descending
+  std::vector<double> extent;      ///< m, max horizontal extent of each piece (same order)
+};
+
+Pieces find_pieces(const bonded::Engine& e) {
+  const auto& p = e.particles();
+  const std::size_t n = p.owned();
+  std::vector<std::uint32_t> parent(n);
+  std::iota(parent.begin(), parent.end(), 0u);
+  auto find = [&](std::uint32_t a) {
+    while (parent[a] != a) {
+      parent[a] = parent[parent[a]];
+      a = parent[a];
+    }
+    return a;
+  };
+  for (const auto& b : e.bonds()) {
+    if (b.i >= n || b.j >= n) continue;
+    const std::uint32_t a = find(b.i), c = find(b.j);
+    if (a != c) parent[std::max(a, c)] = std::min(a, c);
+  }
+  struct Acc {
+    std::int64_t count = 0;
+    double x0 = INFINITY, x1 = -INFINITY, y0 = INFINITY, y1 = -INFINITY;
+  };
+  std::vector<std::int64_t> slot(n, -1);
+  std::vector<Acc> acc;
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::uint32_t r = find(static_cast<std::uint32_t>(i));
+    if (slot[r] < 0) {
+      slot[r] = static_cast<std::int64_t>(acc.size());
+      acc.emplace_back();
+    }
+    Acc& a = acc[slot[r]];
+    const Vec3& x = p.x[i];
+    const double rad = p.radius[i];
+    ++a.count;
+    a.x0 = std::min(a.x0, x.x() - rad);
+    a.x1 = std::max(a.x1, x.x() + rad);
+    a.y0 = std::min(a.y0, x.y() - rad);
+    a.y1 = std::max(a.y1, x.y() + rad);
+  }
+  std::stable_sort(acc.begin(), acc.end(), [](const Acc& a, const Acc& b) { return a.count > b.count; });
+  Pieces out;
+  for (const auto& a : acc) {
+    out.size.push_back(a.count);
+    out.extent.push_back(std::max(a.x1 - a.x0, a.y1 - a.y0));
+  }
+  return out;
+}
+
+double characteristic_length(double E, double h, double rho_w, double g, double nu) {
+  return std::pow(E * h * h * h / (12.0 * rho_w * g * (1.0 - nu * nu)), 0.25);
+}
+
+/// Appends the /analysis groups to a closed run file (HDF5 C API; RunFile has no attributes).
+struct H5 {
+  hid_t id = -1;
+  explicit H5(hid_t h, const std::string& what) : id(h) {
+    if (h < 0) throw std::runtime_error("HDF5: cannot " + what);
+  }
+  ~H5() {
+    if (id < 0) return;
+    switch (H5Iget_type(id)) {
+      case H5I_FILE: H5Fclose(id); break;
+      case H5I_GROUP: H5Gclose(id); break;
+      case H5I_DATASET: H5Dclose(id); break;
+      case H5I_DATASPACE: H5Sclose(id); break;
+      case H5I_ATTR: H5Aclose(id); break;
+      case H5I_DATATYPE: H5Tclose(id); break;
+      default: break;
+    }
+  }
+  H5(const H5&) = delete;
+  H5& operator=(const H5&) = delete;
+};
+
+void h5_attr(hid_t obj, const std::string& name, double v) {
+  H5 sp(H5Screate(H5S_SCALAR), "create a dataspace");
+  H5 a(H5Acreate2(obj, name.c_str(), H5T_NATIVE_DOUBLE, sp.id, H5P_DEFAULT, H5P_DEFAULT), "create attribute " + name);
+  H5Awrite(a.id, H5T_NATIVE_DOUBLE, &v);
+}
+
+void h5_attr(hid_t obj, const std::string& name, const std::string& v) {
+  H5 t(H5Tcopy(H5T_C_S1), "copy a string type");
+  H5Tset_size(t.id, std::max<std::size_t>(1, v.size()));
+  H5 sp(H5Screate(H5S_SCALAR), "create a dataspace");
+  H5 a(H5Acreate2(obj, name.c_str(), t.id, sp.id, H5P_DEFAULT, H5P_DEFAULT), "create attribute " + name);
+  H5Awrite(a.id, t.id, v.c_str());
+}
+
+void h5_vector(hid_t group, const std::string& name, hid_t mem_type, const void* data, std::size_t n,
+               const std::string& units, const std::string& description) {
+  const hsize_t dims[1] = {static_cast<hsize_t>(n)};
+  H5 sp(H5Screate_simple(1, dims, nullptr), "create a dataspace");
+  const hid_t file_type = mem_type == H5T_NATIVE_DOUBLE ? H5T_IEEE_F64LE : H5T_STD_I64LE;
+  H5 d(H5Dcreate2(group, name.c_str(), file_type, sp.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
+       "create dataset " + name);
+  if (n) H5Dwrite(d.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+  h5_attr(d.id, "units", units);
+  h5_attr(d.id, "description", description);
+}
+
+struct AnalysisOut {
+  Pieces pieces;
+  double L_c = 0.0;
+  bool has_iso = false;
+  analysis::IsoInputs iso_in;
+  analysis::IsoResult iso;
+  double dem_peak = 0.0;      ///< N, peak horizontal force on the structure (output-row means)
+  double max_pile = 0.0;      ///< m
+};
+
+void write_analysis(const std::string& path, const AnalysisOut& a) {
+  H5 f(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), "reopen " + path + " to add /analysis");
+  H5 g(H5Gcreate2(f.id, "/analysis", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /analysis");
+  {
+    H5 p(H5Gcreate2(g.id, "pieces", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /analysis/pieces");
+    h5_vector(p.id, "size", H5T_NATIVE_INT64, a.pieces.size.data(), a.pieces.size.size(), "1",
+              "particles per piece (connected over intact bonds) at the end of the run, descending");
+    h5_vector(p.id, "extent", H5T_NATIVE_DOUBLE, a.pieces.extent.data(), a.pieces.extent.size(), "m",
+              "max horizontal extent of each piece (larger side of its x-y bounding box, spheres included)");
+    h5_attr(p.id, "characteristic_length", a.L_c);
+  }
+  if (a.has_iso) {
+    H5 i(H5Gcreate2(g.id, "iso", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /analysis/iso");
+    const auto r = analysis::iso_to_json(a.iso);
+    for (const auto& [k, v] : r.items()) h5_attr(i.id, k, v.get<double>());
+    const auto in = analysis::iso_inputs_to_json(a.iso_in);
+    for (const auto& [k, v] : in.items()) h5_attr(i.id, k, v.get<double>());
+    h5_attr(i.id, "dem_peak_horizontal_force", a.dem_peak);
+    h5_attr(i.id, "dem_max_pile_height", a.max_pile);
+    h5_attr(i.id, "dem_over_iso", a.iso.F_H > 0 ? a.dem_peak / a.iso.F_H : 0.0);
+    h5_attr(i.id, "description", std::string("ISO 19906 (Croasdale & Cammaert) cone load for the scene's ice, "
+                                             "rubble_height = max simulated pile height; forces in N"));
+  }
+  H5Fflush(f.id, H5F_SCOPE_GLOBAL);
+}
+
 void print_warnings(const scene::Scene& s, std::FILE* err) {
   for (const auto& w : s.warnings) std::fprintf(err, "warning: %s\n", w.c_str());
 }
@@ -89,6 +235,14 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   out << "bonds:            " << b.bonds << " (" << sci(b.particles ? 2.0 * b.bonds / b.particles : 0.0, 3)
       << " per particle)\n";
   out << "walls:            " << s.walls.size() << "\n";
+  if (b.structure >= 0) {
+    const auto& st = s.structure;
+    std::string parts;
+    for (const auto& p : b.structure_parts) parts += (parts.empty() ? "" : ", ") + p;
+    out << "structure:        '" << st.name << "' (" << st.type << "; parts " << parts << "), widest radius "
+        << sci(b.structure_radius, 4) << " m, at (" << st.position.transpose() << ") m, velocity ("
+        << st.velocity.transpose() << ") m/s\n";
+  }
   out << "time step:        dt = " << sci(dt, 4) << " s" << (s.time.dt == 0 ? " (paper Eq. 2)" : "")
       << ", critical dt = " << sci(crit, 4) << " s (margin x" << sci(crit / dt, 3) << ")\n";
   out << "steps:            " << sc.total_steps << " for " << s.time.duration << " s; " << rows
@@ -120,12 +274,34 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
 
   const int id_time = file.add_series("/series/time", 1, "s", "simulated time");
   const int id_step = file.add_int_series("/series/step", 1, "1", "step number");
-  const int id_force = file.add_series("/series/force", 3, "N",
-                                       "total force on all walls, mean over the output interval ending at time");
-  std::vector<int> id_part(nwalls);
+  const bool has_st = b.structure >= 0;
+  const std::size_t nparts = b.structure_parts.size();
+  const int id_force = file.add_series(
+      "/series/force", 3, "N",
+      has_st ? "force exerted by the ice on the structure, mean over the output interval ending at time"
+             : "total force exerted by the ice on all walls, mean over the output interval ending at time");
+  std::vector<int> id_wall(nwalls);
   for (std::size_t k = 0; k < nwalls; ++k)
-    id_part[k] = file.add_series("/series/parts/" + s.walls[k].name + "/force", 3, "N",
+    id_wall[k] = file.add_series("/series/walls/" + s.walls[k].name + "/force", 3, "N",
                                  "force on wall '" + s.walls[k].name + "', mean over the output interval");
+  int id_moment = -1, id_pile = -1, id_pos = -1;
+  std::vector<int> id_pf(nparts), id_pm(nparts);
+  if (has_st) {
+    id_moment = file.add_series("/series/moment", 3, "N m",
+                                "moment of the ice loads on the structure about its mesh origin (moving with it), "
+                                "mean over the output interval");
+    for (std::size_t k = 0; k < nparts; ++k) {
+      const std::string& pn = b.structure_parts[k];
+      id_pf[k] = file.add_series("/series/parts/" + pn + "/force", 3, "N",
+                                 "force on structure part '" + pn + "', mean over the output interval");
+      id_pm[k] = file.add_series("/series/parts/" + pn + "/moment", 3, "N m",
+                                 "moment on structure part '" + pn + "' about the mesh origin, mean over the interval");
+    }
+    id_pile = file.add_series("/series/pile_height", 1, "m",
+                              "highest ice above the waterline over the upstream half of the structure, within "
+                              "its widest radius + one particle diameter of the axis");
+    id_pos = file.add_series("/series/structure_position", 3, "m", "position of the structure's mesh origin");
+  }
   struct EnergySeries {
     const char* name;
     const char* description;
@@ -147,24 +323,71 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const int id_particles = file.add_int_series("/series/particles", 1, "1", "particles");
 
   std::vector<Vec3> force_sum(nwalls, Vec3::Zero());
+  Vec3 st_force_sum = Vec3::Zero(), st_moment_sum = Vec3::Zero();
+  std::vector<Vec3> pf_sum(nparts, Vec3::Zero()), pm_sum(nparts, Vec3::Zero());
   std::uint64_t force_count = 0;
   std::vector<double> peak(nwalls, 0.0), peak_time(nwalls, 0.0);
+  double st_peak_h = 0.0, st_peak_h_time = 0.0;    // horizontal |F| of the row means
+  double st_peak_step = 0.0, st_peak_step_time = 0.0;  // horizontal |F| of single steps
+  double max_pile = 0.0, max_pile_time = 0.0;
+  Vec3 st_force_total = Vec3::Zero();              // for the mean over the run
+  std::uint64_t st_force_n = 0;
+
+  analysis::PileProbe probe;
+  if (has_st) {
+    const Vec3& v = s.structure.velocity;
+    probe.upstream = Vec3(v.x(), v.y(), 0.0).norm() > 0 ? Vec3(v.x(), v.y(), 0.0).normalized() : Vec3::UnitX();
+    probe.reach = b.structure_radius + s.material.particle_diameter;
+    probe.water_level = s.water.enabled ? s.water.level : 0.0;
+  }
 
   auto write_row = [&]() {
     const double t = e.time();
     const std::int64_t st = static_cast<std::int64_t>(e.step_count());
     file.append(id_time, &t);
     file.append(id_step, &st);
+    const double inv = force_count ? 1.0 / static_cast<double>(force_count) : 0.0;
     Vec3 total = Vec3::Zero();
     for (std::size_t k = 0; k < nwalls; ++k) {
-      const Vec3 f = force_count ? Vec3(force_sum[k] / static_cast<double>(force_count))
-                                 : e.wall_force(static_cast<int>(k));
+      const Vec3 f = force_count ? Vec3(force_sum[k] * inv) : e.wall_force(static_cast<int>(k));
       total += f;
-      file.append(id_part[k], f.data());
+      file.append(id_wall[k], f.data());
       force_sum[k].setZero();
     }
+    if (has_st) {
+      const auto& L = e.mesh_wall_load(b.structure);
+      const Vec3 f = force_count ? Vec3(st_force_sum * inv) : L.force;
+      const Vec3 m = force_count ? Vec3(st_moment_sum * inv) : L.moment;
+      file.append(id_force, f.data());
+      file.append(id_moment, m.data());
+      for (std::size_t k = 0; k < nparts; ++k) {
+        const Vec3 pf = force_count ? Vec3(pf_sum[k] * inv) : L.part_force[k];
+        const Vec3 pm = force_count ? Vec3(pm_sum[k] * inv) : L.part_moment[k];
+        file.append(id_pf[k], pf.data());
+        file.append(id_pm[k], pm.data());
+        pf_sum[k].setZero();
+        pm_sum[k].setZero();
+      }
+      st_force_sum.setZero();
+      st_moment_sum.setZero();
+      const double fh = std::hypot(f.x(), f.y());
+      if (fh > st_peak_h) {
+        st_peak_h = fh;
+        st_peak_h_time = t;
+      }
+      probe.axis_point = e.mesh_wall_position(b.structure);
+      const auto& ps = e.particles();
+      const double ph = analysis::pile_height(probe, ps.x.data(), ps.radius.data(), ps.owned());
+      file.append(id_pile, &ph);
+      file.append(id_pos, probe.axis_point.data());
+      if (ph > max_pile) {
+        max_pile = ph;
+        max_pile_time = t;
+      }
+    } else {
+      file.append(id_force, total.data());
+    }
     force_count = 0;
-    file.append(id_force, total.data());
     const auto E = e.energy();
     const double v[] = {E.kinetic_translational + E.kinetic_rotational,
                         E.kinetic_translational,
@@ -231,6 +454,22 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
           peak_time[w] = e.time();
         }
       }
+      if (has_st) {
+        const auto& L = e.mesh_wall_load(b.structure);
+        st_force_sum += L.force;
+        st_moment_sum += L.moment;
+        for (std::size_t q = 0; q < nparts; ++q) {
+          pf_sum[q] += L.part_force[q];
+          pm_sum[q] += L.part_moment[q];
+        }
+        st_force_total += L.force;
+        ++st_force_n;
+        const double fh = std::hypot(L.force.x(), L.force.y());
+        if (fh > st_peak_step) {
+          st_peak_step = fh;
+          st_peak_step_time = e.time();
+        }
+      }
       ++force_count;
       if (k % sc.output_every == 0 || k == sc.total_steps) write_row();
       if (sc.snapshot_every && (k % sc.snapshot_every == 0 || k == sc.total_steps)) write_snapshot();
@@ -271,8 +510,28 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   if (progress_line_open) std::fprintf(progress, "\n");
   const std::size_t rows = file.series_rows(id_time), snaps = file.snapshot_count();
   file.close();
-
   const double wall = std::chrono::duration<double>(Clock::now() - t0).count();
+
+  // ---- end-of-run analysis: broken pieces, ISO 19906 next to the DEM ----
+  AnalysisOut an;
+  an.pieces = find_pieces(e);
+  an.dem_peak = st_peak_h;
+  an.max_pile = max_pile;
+  const double h_iso = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
+  an.L_c = characteristic_length(s.material.youngs_modulus, h_iso, s.water.density, s.gravity.norm(),
+                                 s.material.poisson_ratio);
+  std::string iso_note;
+  if (has_st && s.structure.type == "pier") {
+    try {
+      an.iso_in = scene::iso_inputs(s, max_pile);
+      an.iso = analysis::compute_iso(an.iso_in);
+      an.has_iso = true;
+    } catch (const InputError& err) {
+      iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
+    }
+  }
+  write_analysis(out_path, an);
+
   const auto& st = e.stats();
   out << "hybridsim: " << s.name << " finished: " << e.step_count() << " steps to t = " << sci(e.time(), 6)
       << " s in " << sci(wall, 4) << " s wall (" << sci(e.step_count() / std::max(wall, 1e-9), 4) << " steps/s, "
@@ -283,7 +542,57 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   for (std::size_t w = 0; w < nwalls; ++w)
     out << "  peak force on wall '" << s.walls[w].name << "': " << sci(peak[w], 4) << " N at t = "
         << sci(peak_time[w], 4) << " s\n";
+  if (has_st) {
+    const Vec3 mean = st_force_n ? Vec3(st_force_total / static_cast<double>(st_force_n)) : Vec3::Zero();
+    out << "  structure '" << s.structure.name << "': peak horizontal force " << sci(st_peak_h, 4)
+        << " N at t = " << sci(st_peak_h_time, 4) << " s (output-interval means; single-step peak "
+        << sci(st_peak_step, 4) << " N at t = " << sci(st_peak_step_time, 4) << " s); mean force ("
+        << sci(mean.x(), 4) << ", " << sci(mean.y(), 4) << ", " << sci(mean.z(), 4) << ") N\n";
+    out << "  max pile height " << sci(max_pile, 4) << " m at t = " << sci(max_pile_time, 4) << " s\n";
+  }
+  {
+    std::size_t multi = 0;
+    for (auto n : an.pieces.size) multi += n >= 2;
+    std::vector<double> ext;
+    for (std::size_t k = 1; k < an.pieces.size.size(); ++k)
+      if (an.pieces.size[k] >= 2) ext.push_back(an.pieces.extent[k]);
+    std::sort(ext.begin(), ext.end());
+    const double median = ext.empty() ? 0.0
+                          : ext.size() % 2 ? ext[ext.size() / 2]
+                                           : 0.5 * (ext[ext.size() / 2 - 1] + ext[ext.size() / 2]);
+    out << "  pieces: " << multi << " with >= 2 particles (" << an.pieces.size.size() << " in all), largest "
+        << (an.pieces.size.empty() ? 0 : an.pieces.size[0]) << " particles; median extent of broken-off pieces "
+        << sci(median, 4) << " m (" << ext.size() << " pieces); L_c = " << sci(an.L_c, 4) << " m\n";
+  }
+  if (an.has_iso) {
+    const auto& r = an.iso;
+    out << "  ISO 19906 (h = " << sci(an.iso_in.thickness, 4) << " m, h_r = " << sci(max_pile, 4)
+        << " m): H_B " << sci(r.H_B, 4) << ", H_P " << sci(r.H_P, 4) << ", H_R " << sci(r.H_R, 4) << ", H_L "
+        << sci(r.H_L, 4) << ", H_T " << sci(r.H_T, 4) << " N\n";
+    out << "  DEM peak horizontal force " << sci(st_peak_h, 4) << " N vs ISO F_H " << sci(r.F_H, 4)
+        << " N: DEM/ISO = " << sci(r.F_H > 0 ? st_peak_h / r.F_H : 0.0, 3) << "\n";
+  } else if (!iso_note.empty()) {
+    out << "  " << iso_note << "\n";
+  }
   out << "  output: " << out_path << " (" << rows << " series rows, " << snaps << " snapshots)\n";
+  return 0;
+}
+
+int iso_command(const RunOptions& opt, std::ostream& out) {
+  nlohmann::json j = scene::read_json_file(opt.scene_path);
+  analysis::IsoInputs in;
+  if (j.is_object() && (j.contains("time") || j.contains("ice"))) {
+    const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
+    in = scene::iso_inputs(s, s.analysis.rubble_height);
+  } else {
+    if (!opt.overrides.empty())
+      throw InputError("--set", "--set applies to scenes; edit the ISO object instead");
+    in = analysis::iso_inputs_from_json(j, "");
+  }
+  const analysis::IsoResult r = analysis::compute_iso(in);
+  nlohmann::json o = analysis::iso_to_json(r);
+  o["inputs"] = analysis::iso_inputs_to_json(in);
+  out << o.dump(2) << "\n";
   return 0;
 }
 

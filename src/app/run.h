@@ -27,4 +27,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress);
 /// Returns 0; throws hs::InputError.
 int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err);
 
+/// `hybridsim iso FILE.json`: a scene (has "time" or "ice"; inputs derived from its ice and
+/// pier, rubble height from analysis.rubble_height) or a plain object of ISO input keys.
+/// Prints the estimate as JSON (iso_to_json plus "inputs"). Throws hs::InputError.
+int iso_command(const RunOptions& opt, std::ostream& out);
+
 }  // namespace hs::app

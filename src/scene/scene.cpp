@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <map>
@@ -23,7 +24,7 @@ namespace {
 const std::map<std::string, std::vector<std::string>>& schema_keys() {
   static const std::map<std::string, std::vector<std::string>> k = {
       {"", {"name", "description", "output", "time", "material", "bonds", "water", "gravity", "ice", "walls",
-            "stability"}},
+            "structure", "analysis", "stability"}},
       {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval"}},
       {"/material",
        {"density", "youngs_modulus", "poisson_ratio", "particle_diameter", "restitution", "friction",
@@ -35,6 +36,13 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/ice", {"type", "thickness", "length", "width", "origin", "consolidated_layer"}},
       {"/ice/consolidated_layer", {"thickness", "width", "center_x"}},
       {"/walls/*", {"name", "point", "normal", "velocity", "friction"}},
+      {"/structure", {"name", "type", "pier", "mesh", "position", "velocity", "friction"}},
+      {"/structure/pier",
+       {"waterline_diameter", "cone_angle_deg", "cone_top_z", "cone_bottom_z", "neck_height", "shaft_diameter",
+        "shaft_bottom_z", "segments"}},
+      {"/analysis",
+       {"flexural_strength", "rubble_porosity", "rubble_slope_deg", "rubble_friction_angle_deg", "rubble_cohesion",
+        "friction_ice_ice", "keel_depth", "rubble_height"}},
       {"/stability", {"max_speed", "max_overlap_ratio"}},
   };
   return k;
@@ -334,7 +342,7 @@ void apply_override(json& scene, const std::string& assignment) {
 
 // ------------------------------------------------------------------ parse_scene
 
-Scene parse_scene(const json& j) {
+Scene parse_scene(const json& j, const std::string& base_dir) {
   Scene s;
   s.json = j;
   const Obj root(j, "");
@@ -499,6 +507,76 @@ Scene parse_scene(const json& j) {
     }
   }
 
+  // structure
+  if (root.has("structure")) {
+    const Obj o(root.raw("structure"), "/structure");
+    auto& st = s.structure;
+    s.has_structure = true;
+    read_name(o, "name", st.name, false);
+    st.type = o.choice("type", o.has("mesh") && !o.has("pier") ? "mesh" : "pier", {"pier", "mesh"});
+    if (st.type == "pier") {
+      if (o.has("mesh"))
+        throw InputError("/structure/mesh", "a mesh file is only read with \"type\": \"mesh\"; remove \"mesh\" "
+                                            "or set \"type\": \"mesh\"");
+      if (o.has("pier")) {
+        const Obj p(o.raw("pier"), "/structure/pier");
+        auto& pp = st.pier;
+        const std::string hint = "see docs/scene.md, structure.pier";
+        pp.waterline_diameter = p.number("waterline_diameter", pp.waterline_diameter, Range::any(), "m", hint);
+        pp.cone_angle_deg = p.number("cone_angle_deg", pp.cone_angle_deg, Range::any(), "deg", hint);
+        pp.cone_top_z = p.number("cone_top_z", pp.cone_top_z, Range::any(), "m", hint);
+        pp.cone_bottom_z = p.number("cone_bottom_z", pp.cone_bottom_z, Range::any(), "m", hint);
+        pp.neck_height = p.number("neck_height", pp.neck_height, Range::any(), "m", hint);
+        pp.shaft_diameter = p.number("shaft_diameter", pp.shaft_diameter, Range::any(), "m", hint);
+        pp.shaft_bottom_z = p.number("shaft_bottom_z", pp.shaft_bottom_z, Range::any(), "m", hint);
+        const double seg = p.number("segments", pp.segments, {3.0, 100000.0, false, false}, "",
+                                    "polygon corners per circle, an integer, e.g. 64");
+        if (seg != std::floor(seg))
+          throw InputError("/structure/pier/segments", "value " + fmt(seg) + " must be a whole number, e.g. 64");
+        pp.segments = static_cast<int>(seg);
+      }
+      mesh::validate_pier_params(st.pier, "/structure/pier");
+    } else {
+      if (o.has("pier"))
+        throw InputError("/structure/pier", "pier parameters are only used with \"type\": \"pier\"; remove "
+                                            "\"pier\" or set \"type\": \"pier\"");
+      st.mesh = o.string("mesh", "", true, "an STL or OBJ file, relative to the scene file's directory");
+      if (st.mesh.empty()) throw InputError("/structure/mesh", "must not be empty; give an .stl or .obj file");
+      namespace fs = std::filesystem;
+      fs::path mp(st.mesh);
+      if (mp.is_relative() && !base_dir.empty()) mp = fs::path(base_dir) / mp;
+      st.mesh_path = mp.lexically_normal().string();
+      std::error_code ec;
+      if (!fs::is_regular_file(mp, ec))
+        throw InputError("/structure/mesh", "mesh file \"" + st.mesh_path + "\" not found (relative paths start "
+                                            "from the scene file's directory); check the name");
+    }
+    st.position = o.vec<3>("position", Vec3(0.0, 0.0, s.water.enabled ? s.water.level : 0.0), "m",
+                           "[x, y, z] of the mesh origin (pier: its axis at the waterline)");
+    st.velocity = o.vec<3>("velocity", st.velocity, "m/s", "constant velocity into the ice, e.g. [0.4, 0, 0]");
+    st.friction = o.number("friction", st.friction, Range::non_negative(), "", "ice-structure Coulomb coefficient");
+  }
+
+  // analysis (ISO 19906 inputs the ice and structure do not give)
+  if (root.has("analysis")) {
+    const Obj o(root.raw("analysis"), "/analysis");
+    auto& a = s.analysis;
+    a.flexural_strength = o.number("flexural_strength", a.flexural_strength, Range::positive(), "Pa",
+                                   "flexural strength of the ice, e.g. 0.5e6");
+    a.rubble_porosity = o.number("rubble_porosity", a.rubble_porosity, {0.0, 1.0, false, true}, "", "e.g. 0.3");
+    a.rubble_slope_deg = o.number("rubble_slope_deg", a.rubble_slope_deg, {0.0, 90.0, false, true}, "deg",
+                                  "rubble pile slope, below the cone angle; 0 = 0.8 x the cone angle");
+    a.rubble_friction_angle_deg = o.number("rubble_friction_angle_deg", a.rubble_friction_angle_deg,
+                                           {0.0, 90.0, false, true}, "deg", "e.g. 30");
+    a.rubble_cohesion = o.number("rubble_cohesion", a.rubble_cohesion, Range::non_negative(), "Pa", "e.g. 3e3");
+    a.friction_ice_ice = o.number("friction_ice_ice", s.material.friction, Range::non_negative(), "",
+                                  "ice-ice friction of the rubble; default material.friction");
+    a.keel_depth = o.number("keel_depth", a.keel_depth, Range::non_negative(), "m", "0 for level ice");
+    a.rubble_height = o.number("rubble_height", a.rubble_height, Range::non_negative(), "m",
+                               "pile height for `hybridsim iso` on this scene; a run uses its own");
+  }
+  if (s.analysis.friction_ice_ice < 0) s.analysis.friction_ice_ice = s.material.friction;
+
   // stability
   if (root.has("stability")) {
     const Obj o(root.raw("stability"), "/stability");
@@ -515,7 +593,7 @@ Scene load_scene_file(const std::string& path, const std::vector<std::string>& o
   json j = read_json_file(path);
   if (!j.is_object()) throw InputError("/", "the scene must be a JSON object {...}, got " + got(j));
   for (const auto& o : overrides) apply_override(j, o);
-  return parse_scene(j);
+  return parse_scene(j, std::filesystem::path(path).parent_path().string());
 }
 
 // ------------------------------------------------------------------ building
@@ -576,6 +654,48 @@ IceLayout ice_layout(const Scene& s) {
   return L;
 }
 
+mesh::TriMesh structure_mesh(const Scene& s) {
+  if (s.structure.type == "pier") return mesh::make_pier(s.structure.pier);
+  try {
+    return mesh::load_mesh(s.structure.mesh_path);
+  } catch (const InputError& e) {
+    throw InputError("/structure/mesh", "cannot use mesh file \"" + s.structure.mesh_path + "\": " + e.what());
+  }
+}
+
+double structure_radius(const Scene& s, const mesh::TriMesh& m) {
+  if (s.structure.type == "pier") return mesh::pier_cone_radius(s.structure.pier, s.structure.pier.cone_bottom_z);
+  const mesh::Aabb b = mesh::bounding_box(m);
+  return 0.5 * std::max(b.extent().x(), b.extent().y());
+}
+
+analysis::IsoInputs iso_inputs(const Scene& s, double rubble_height) {
+  if (!s.has_structure)
+    throw InputError("/structure", "the ISO 19906 estimate needs a cone: add \"structure\": {\"type\": \"pier\"}");
+  if (s.structure.type != "pier")
+    throw InputError("/structure/type", "the ISO 19906 estimate needs the parametric pier (waterline diameter and "
+                                        "cone angle); a mesh structure does not give them");
+  analysis::IsoInputs in;
+  in.thickness = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
+  in.waterline_diameter = s.structure.pier.waterline_diameter;
+  in.cone_angle_deg = s.structure.pier.cone_angle_deg;
+  in.flexural_strength = s.analysis.flexural_strength;
+  in.youngs_modulus = s.material.youngs_modulus;
+  in.poisson_ratio = s.material.poisson_ratio;
+  in.friction_ice_structure = s.structure.friction;
+  in.friction_ice_ice = s.analysis.friction_ice_ice;
+  in.ice_density = s.material.density;
+  in.water_density = s.water.density;
+  in.gravity = s.gravity.norm();
+  in.rubble_height = rubble_height;
+  in.rubble_porosity = s.analysis.rubble_porosity;
+  in.rubble_cohesion = s.analysis.rubble_cohesion;
+  in.rubble_slope_deg = s.analysis.rubble_slope_deg > 0 ? s.analysis.rubble_slope_deg : 0.8 * in.cone_angle_deg;
+  in.rubble_friction_angle_deg = s.analysis.rubble_friction_angle_deg;
+  in.keel_depth = s.analysis.keel_depth;
+  return in;
+}
+
 Built build_engine(const Scene& s, bool check_dt) {
   using namespace bonded;
   Built out;
@@ -629,6 +749,17 @@ Built build_engine(const Scene& s, bool check_dt) {
   out.bonds = e.bond_touching(0, e.particles().size(), BondKind::Lattice);
 
   for (const auto& w : s.walls) e.add_wall(PlaneWall{w.name, w.point, w.normal, w.velocity, w.friction});
+  if (s.has_structure) {
+    MeshWallDef md;
+    md.name = s.structure.name;
+    md.mesh = structure_mesh(s);
+    out.structure_radius = structure_radius(s, md.mesh);
+    md.position = s.structure.position;
+    md.velocity = s.structure.velocity;
+    md.friction = s.structure.friction;
+    out.structure = e.add_mesh_wall(std::move(md));
+    out.structure_parts = e.mesh_wall(out.structure).mesh.part_names;
+  }
   if (check_dt) e.check_time_step();
   return out;
 }

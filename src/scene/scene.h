@@ -8,7 +8,10 @@
 // docs/scene.md; JSON Schema for editors: docs/scene.schema.json.
 #pragma once
 
+#include "analysis/iso19906.h"
 #include "bonded/engine.h"
+#include "mesh/pier.h"
+#include "mesh/tri_mesh.h"
 
 #include <nlohmann/json.hpp>
 
@@ -82,6 +85,31 @@ struct WallDef {
   double friction = 0.1;           ///< ice-wall Coulomb coefficient
 };
 
+/// The structure (pier) pushed through the ice: a parametric pier or a mesh file, moving at
+/// constant velocity. Loads on it are tallied per mesh part.
+struct StructureDef {
+  std::string name = "pier";
+  std::string type = "pier";           ///< "pier" (parametric, mesh::make_pier) or "mesh" (STL/OBJ file)
+  mesh::PierParams pier;               ///< type "pier"
+  std::string mesh;                    ///< type "mesh": the path as written in the scene
+  std::string mesh_path;               ///< ... resolved against the scene file's directory
+  Vec3 position = Vec3::Zero();        ///< world position of the mesh origin (pier: axis at its waterline), m
+  Vec3 velocity{0.4, 0.0, 0.0};        ///< m/s; the structure moves into the ice
+  double friction = 0.1;               ///< ice-structure Coulomb coefficient
+};
+
+/// Inputs of the ISO 19906 estimate that the scene's ice and structure do not give.
+struct AnalysisDef {
+  double flexural_strength = 0.5e6;        ///< sigma_f, Pa
+  double rubble_porosity = 0.3;            ///< -
+  double rubble_slope_deg = 0.0;           ///< deg; 0 = 0.8 x the cone angle
+  double rubble_friction_angle_deg = 30.0; ///< deg
+  double rubble_cohesion = 3e3;            ///< Pa
+  double friction_ice_ice = -1.0;          ///< -; < 0 = material.friction
+  double keel_depth = 0.0;                 ///< m
+  double rubble_height = 0.0;              ///< m; used by `hybridsim iso` (a run uses its pile height)
+};
+
 struct StabilityDef {
   double max_speed = 100.0;        ///< m/s
   double max_overlap_ratio = 0.5;  ///< overlap / radius
@@ -99,6 +127,9 @@ struct Scene {
   bool has_ice = false;
   IceDef ice;
   std::vector<WallDef> walls;
+  bool has_structure = false;
+  StructureDef structure;
+  AnalysisDef analysis;
   StabilityDef stability;
 
   nlohmann::json json;             ///< the effective scene (after --set overrides)
@@ -117,7 +148,9 @@ nlohmann::json read_json_file(const std::string& path);
 /// scene schema, or if the assignment is malformed.
 void apply_override(nlohmann::json& scene, const std::string& assignment);
 /// Validates and converts. Throws InputError naming the JSON pointer of the first problem.
-Scene parse_scene(const nlohmann::json& j);
+/// Relative file names in the scene (/structure/mesh) are resolved against `base_dir`
+/// (the scene file's directory; "" = the current directory).
+Scene parse_scene(const nlohmann::json& j, const std::string& base_dir = "");
 /// read_json_file + every override in order + parse_scene.
 Scene load_scene_file(const std::string& path, const std::vector<std::string>& overrides = {});
 
@@ -143,8 +176,24 @@ struct Built {
   std::size_t particles = 0;
   std::size_t bonds = 0;
   IceLayout layout;
+  int structure = -1;                   ///< mesh wall index of the structure; -1 without one
+  double structure_radius = 0.0;        ///< see structure_radius()
+  std::vector<std::string> structure_parts;
 };
-/// Builds the engine: bonded HCP ice floating at equilibrium, walls. With check_dt the time
+// ---- structure ----
+/// The structure's mesh in its own frame (make_pier or the loaded file). InputError at
+/// /structure/mesh if the file cannot be read.
+mesh::TriMesh structure_mesh(const Scene& s);
+/// Horizontal radius of the structure's widest section (pier: the cone base radius; mesh:
+/// half the larger horizontal bounding-box side), m.
+double structure_radius(const Scene& s, const mesh::TriMesh& m);
+/// ISO 19906 inputs for the scene's ice and pier (docs/scene.md, "analysis"): thickness of
+/// the consolidated layer if there is one, else of the level ice; E, nu, densities, g from the
+/// scene; waterline diameter and cone angle from the pier; mu = structure friction.
+/// InputError at /structure when the scene has no parametric pier.
+analysis::IsoInputs iso_inputs(const Scene& s, double rubble_height);
+
+/// Builds the engine: bonded HCP ice floating at equilibrium, walls, the structure. With check_dt the time
 /// step is checked against the critical step (InputError at "/time/dt" if too large).
 Built build_engine(const Scene& s, bool check_dt = true);
 

@@ -4,6 +4,8 @@
 #include <hdf5.h>
 #include <nlohmann/json.hpp>
 
+#include "analysis/iso19906.h"
+
 #include <sys/wait.h>
 
 #include <cstdlib>
@@ -102,7 +104,7 @@ TEST(Cli, RunsATinySceneAndWritesTheFile) {
   const auto n = rows(work_dir() / "tiny.h5", "/series/time");
   EXPECT_GE(n, 7u);
   EXPECT_LE(n, 8u);
-  EXPECT_EQ(rows(work_dir() / "tiny.h5", "/series/parts/pusher/force"), n);
+  EXPECT_EQ(rows(work_dir() / "tiny.h5", "/series/walls/pusher/force"), n);
   EXPECT_EQ(rows(work_dir() / "tiny.h5", "/series/force"), n);
   EXPECT_EQ(rows(work_dir() / "tiny.h5", "/series/energy/bond_elastic"), n);
   EXPECT_EQ(rows(work_dir() / "tiny.h5", "/series/bonds_broken"), n);
@@ -164,4 +166,168 @@ TEST(Cli, UnstableRunExitsWithThreeAndKeepsTheOutput) {
   EXPECT_EQ(r.rc, 3) << r.err;
   EXPECT_NE(r.err.find("unstable"), std::string::npos) << r.err;
   EXPECT_GE(rows(work_dir() / "unstable.h5", "/series/time"), 1u) << "output so far must be kept";
+}
+
+// ---- structure (pier), pile height, ISO and pieces ----
+
+namespace {
+
+/// A 2 m pier pushed at 2 m/s into a small sheet centred on its axis.
+json tiny_pier() {
+  return json::parse(R"({
+    "name": "tiny_pier",
+    "time": {"duration": 0.12, "output_interval": 0.004},
+    "material": {"particle_diameter": 0.25, "youngs_modulus": 1e7},
+    "bonds": {"tensile_strength": 1e5, "shear_strength": 1e5},
+    "water": {"linear_drag": 0.5},
+    "ice": {"thickness": 0.6, "length": 3, "width": 4, "origin": [0, -2]},
+    "walls": [{"name": "far_end", "point": [3, 0, 0], "normal": [-1, 0, 0]}],
+    "structure": {
+      "pier": {"waterline_diameter": 2.0, "cone_top_z": 0.5, "cone_bottom_z": -1.0, "neck_height": 0.5,
+               "shaft_diameter": 1.5, "shaft_bottom_z": -3.0, "segments": 32},
+      "position": [-1.38, 0, 0],
+      "velocity": [2.0, 0, 0]
+    }
+  })");
+}
+
+std::vector<double> read_doubles(const fs::path& h5, const char* dataset) {
+  std::vector<double> v;
+  const hid_t f = H5Fopen(h5.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return v;
+  const hid_t d = H5Dopen2(f, dataset, H5P_DEFAULT);
+  if (d >= 0) {
+    const hid_t sp = H5Dget_space(d);
+    v.resize(static_cast<std::size_t>(H5Sget_simple_extent_npoints(sp)));
+    H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
+    H5Sclose(sp);
+    H5Dclose(d);
+  }
+  H5Fclose(f);
+  return v;
+}
+
+double read_attr(const fs::path& h5, const char* object, const char* name) {
+  double v = NAN;
+  const hid_t f = H5Fopen(h5.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return v;
+  if (H5Aexists_by_name(f, object, name, H5P_DEFAULT) > 0) {
+    const hid_t a = H5Aopen_by_name(f, object, name, H5P_DEFAULT, H5P_DEFAULT);
+    H5Aread(a, H5T_NATIVE_DOUBLE, &v);
+    H5Aclose(a);
+  }
+  H5Fclose(f);
+  return v;
+}
+
+}  // namespace
+
+TEST(CliStructure, TinyPierRunWritesLoadsPileIsoAndPieces) {
+  write("tiny_pier.json", tiny_pier().dump(2));
+  const fs::path h5 = work_dir() / "tiny_pier.h5";
+  fs::remove(h5);
+  const Result r = hybridsim("tiny_pier.json");
+  ASSERT_EQ(r.rc, 0) << r.out << r.err;
+  for (const char* word : {"structure 'pier'", "max pile height", "pieces:", "L_c", "ISO 19906", "DEM/ISO"})
+    EXPECT_NE(r.out.find(word), std::string::npos) << word << "\n" << r.out;
+  const auto n = rows(h5, "/series/time");
+  EXPECT_GE(n, 30u);
+  for (const char* ds : {"/series/force", "/series/moment", "/series/parts/cone/force", "/series/parts/cone/moment",
+                         "/series/parts/shaft/force", "/series/parts/neck/force", "/series/walls/far_end/force",
+                         "/series/pile_height", "/series/structure_position"})
+    EXPECT_EQ(rows(h5, ds), n) << ds;
+
+  // The structure's force is the sum over its parts; it pushes +x, so the ice pushes back (-x).
+  const auto F = read_doubles(h5, "/series/force");
+  const auto cone = read_doubles(h5, "/series/parts/cone/force");
+  const auto neck = read_doubles(h5, "/series/parts/neck/force");
+  const auto shaft = read_doubles(h5, "/series/parts/shaft/force");
+  double fx = 0, fy = 0, fy_abs_max = 0;
+  for (std::size_t k = 0; k < F.size(); ++k) {
+    EXPECT_NEAR(F[k], cone[k] + neck[k] + shaft[k], 1e-6 * (1 + std::abs(F[k])));
+    if (k % 3 == 0) fx += F[k];
+    if (k % 3 == 1) {
+      fy += F[k];
+      fy_abs_max = std::max(fy_abs_max, std::abs(F[k]));
+    }
+  }
+  EXPECT_LT(fx, 0.0) << "the ice must resist the pier";
+  // Mirror symmetry about the pier axis (y = 0): the mean side force is small next to F_x.
+  EXPECT_LT(std::abs(fy), 0.1 * std::abs(fx)) << "mean F_y " << fy / n << " vs mean F_x " << fx / n;
+
+  const auto pile = read_doubles(h5, "/series/pile_height");
+  double pmax = 0;
+  for (double p : pile) {
+    EXPECT_GE(p, 0.0);
+    pmax = std::max(pmax, p);
+  }
+  EXPECT_GT(pmax, 0.0) << "the freeboard alone is above the waterline";
+
+  // ISO next to the DEM: same inputs as the scene, rubble height = the max pile height.
+  const double FH = read_attr(h5, "/analysis/iso", "F_H");
+  EXPECT_GT(FH, 0.0);
+  EXPECT_NEAR(read_attr(h5, "/analysis/iso", "rubble_height"), pmax, 1e-12);
+  EXPECT_EQ(read_attr(h5, "/analysis/iso", "waterline_diameter"), 2.0);
+  EXPECT_EQ(read_attr(h5, "/analysis/iso", "youngs_modulus"), 1e7);
+  EXPECT_GT(read_attr(h5, "/analysis/iso", "dem_peak_horizontal_force"), 0.0);
+  for (const char* k : {"H_B", "H_P", "H_R", "H_L", "H_T", "F_K", "F_total"})
+    EXPECT_FALSE(std::isnan(read_attr(h5, "/analysis/iso", k))) << k;
+
+  const auto size = read_doubles(h5, "/analysis/pieces/size");
+  const auto ext = read_doubles(h5, "/analysis/pieces/extent");
+  ASSERT_FALSE(size.empty());
+  ASSERT_EQ(size.size(), ext.size());
+  double total = 0;
+  for (std::size_t k = 0; k < size.size(); ++k) {
+    total += size[k];
+    if (k) EXPECT_LE(size[k], size[k - 1]);
+    EXPECT_GE(ext[k], 0.25 - 1e-9);
+  }
+  EXPECT_EQ(total, read_doubles(h5, "/series/particles").back());
+}
+
+TEST(CliStructure, IsoCommandOnPlainInputsAndOnAScene) {
+  hs::analysis::IsoInputs in;
+  in.thickness = 0.9;
+  in.rubble_height = 3.0;
+  write("iso.json", R"({"thickness": 0.9, "rubble_height": 3.0})");
+  const Result r = hybridsim("iso iso.json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const json o = json::parse(r.out);
+  const auto expect = hs::analysis::compute_iso(in);
+  EXPECT_DOUBLE_EQ(o.at("F_H").get<double>(), expect.F_H);
+  EXPECT_DOUBLE_EQ(o.at("H_B").get<double>(), expect.H_B);
+  EXPECT_EQ(o.at("inputs").at("thickness").get<double>(), 0.9);
+
+  json sc = tiny_pier();
+  sc["analysis"] = {{"rubble_height", 0.5}, {"flexural_strength", 0.6e6}};
+  write("iso_scene.json", sc.dump());
+  const Result r2 = hybridsim("iso iso_scene.json");
+  ASSERT_EQ(r2.rc, 0) << r2.err;
+  const json o2 = json::parse(r2.out);
+  EXPECT_EQ(o2.at("inputs").at("waterline_diameter").get<double>(), 2.0);
+  EXPECT_EQ(o2.at("inputs").at("rubble_height").get<double>(), 0.5);
+  EXPECT_EQ(o2.at("inputs").at("flexural_strength").get<double>(), 0.6e6);
+  EXPECT_EQ(o2.at("inputs").at("thickness").get<double>(), 0.6);
+  EXPECT_GT(o2.at("F_H").get<double>(), 0.0);
+
+  write("iso_bad.json", R"({"thicknes": 0.9})");
+  const Result r3 = hybridsim("iso iso_bad.json");
+  EXPECT_EQ(r3.rc, 2);
+  EXPECT_NE(r3.err.find("/thicknes"), std::string::npos) << r3.err;
+  json nost = tiny();
+  write("iso_nostructure.json", nost.dump());
+  const Result r4 = hybridsim("iso iso_nostructure.json");
+  EXPECT_EQ(r4.rc, 2);
+  EXPECT_NE(r4.err.find("error: /structure"), std::string::npos) << r4.err;
+}
+
+TEST(CliStructure, MissingMeshFileNamesThePath) {
+  json j = tiny();
+  j["structure"] = {{"type", "mesh"}, {"mesh", "meshes/nope.stl"}};
+  write("nomesh.json", j.dump());
+  const Result r = hybridsim("check nomesh.json");
+  EXPECT_EQ(r.rc, 2);
+  EXPECT_NE(r.err.find("error: /structure/mesh"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("meshes/nope.stl"), std::string::npos) << r.err;
 }

@@ -5,6 +5,7 @@
 #include "scene/scene.h"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -278,4 +279,98 @@ TEST(SceneSchema, DocsSchemaListsTheSameKeys) {
     if (node.contains("items") && node["items"].is_object()) walk(node["items"], ptr + "/0");
   };
   walk(schema, "");
+}
+
+// ---- structure and analysis sections ----
+
+namespace {
+json with_pier() {
+  json j = minimal();
+  j["structure"] = json::object();
+  return j;
+}
+}  // namespace
+
+TEST(SceneStructure, DefaultsAndBuild) {
+  const scene::Scene s0 = scene::parse_scene(minimal());
+  EXPECT_FALSE(s0.has_structure);
+  const scene::Scene s = scene::parse_scene(with_pier());
+  ASSERT_TRUE(s.has_structure);
+  EXPECT_EQ(s.structure.name, "pier");
+  EXPECT_EQ(s.structure.type, "pier");
+  EXPECT_EQ(s.structure.pier.waterline_diameter, 14.0);
+  EXPECT_EQ(s.structure.pier.cone_angle_deg, 52.0);
+  EXPECT_EQ(s.structure.pier.segments, 64);
+  EXPECT_EQ(s.structure.velocity, Vec3(0.4, 0, 0));
+  EXPECT_EQ(s.structure.position, Vec3(0, 0, 0));
+  EXPECT_EQ(s.structure.friction, 0.1);
+  EXPECT_EQ(s.analysis.flexural_strength, 0.5e6);
+  EXPECT_EQ(s.analysis.friction_ice_ice, s.material.friction);
+
+  json j = with_pier();
+  j["structure"]["pier"] = {{"waterline_diameter", 2.0}, {"cone_top_z", 0.5}, {"cone_bottom_z", -1.0},
+                            {"neck_height", 0.5}, {"shaft_diameter", 1.5}, {"shaft_bottom_z", -3.0}};
+  j["structure"]["position"] = {-5.0, 1.5, 0.0};
+  const scene::Scene s2 = scene::parse_scene(j);
+  scene::Built b = scene::build_engine(s2);
+  ASSERT_EQ(b.structure, 0);
+  EXPECT_EQ(b.structure_parts, (std::vector<std::string>{"neck", "cone", "shaft"}));
+  EXPECT_NEAR(b.structure_radius, 1.0 + 1.0 / std::tan(52.0 * kPi / 180.0), 1e-12);
+  EXPECT_EQ(b.engine->mesh_wall_position(0), Vec3(-5.0, 1.5, 0.0));
+
+  const auto in = scene::iso_inputs(s2, 1.25);
+  EXPECT_EQ(in.waterline_diameter, 2.0);
+  EXPECT_EQ(in.thickness, 1.5);
+  EXPECT_EQ(in.rubble_height, 1.25);
+  EXPECT_DOUBLE_EQ(in.rubble_slope_deg, 0.8 * 52.0);
+  EXPECT_EQ(in.youngs_modulus, 1e9);
+  EXPECT_EQ(in.friction_ice_ice, 0.3);
+  j["ice"]["length"] = 6;
+  j["ice"]["consolidated_layer"] = {{"thickness", 2.4}, {"width", 2.0}};
+  EXPECT_EQ(scene::iso_inputs(scene::parse_scene(j), 0).thickness, 2.4);
+  expect_error([] { scene::iso_inputs(scene::parse_scene(minimal()), 0); }, "/structure", "needs a cone");
+}
+
+TEST(SceneStructure, Errors) {
+  expect_bad("/structure/pier/cone_angle_deg", 95, "/structure/pier/cone_angle_deg", "(0, 90)");
+  expect_bad("/structure/pier/cone_angle", 45, "/structure/pier/cone_angle", "unknown key");
+  expect_bad("/structure/pier/shaft_diameter", 30, "/structure/pier/shaft_diameter", "smaller than the cone base");
+  expect_bad("/structure/pier/segments", 6.5, "/structure/pier/segments", "whole number");
+  expect_bad("/structure/velocty", json::array({1, 0, 0}), "/structure/velocty", "did you mean \"velocity\"");
+  expect_bad("/structure/type", "cone", "/structure/type", "use one of");
+  expect_bad("/structure/friction", -1, "/structure/friction", "out of range");
+  expect_bad("/analysis/rubble_porosity", 1.0, "/analysis/rubble_porosity", "out of range");
+  expect_bad("/analysis/flexural", 1e6, "/analysis/flexural", "unknown key");
+  json j = minimal();
+  j["structure"] = {{"type", "mesh"}};
+  expect_error([&] { scene::parse_scene(j); }, "/structure/mesh", "missing required field");
+  j["structure"] = {{"type", "mesh"}, {"mesh", "no_such_pier.stl"}};
+  expect_error([&] { scene::parse_scene(j, "/some/dir"); }, "/structure/mesh", "/some/dir/no_such_pier.stl");
+  j["structure"] = {{"type", "mesh"}, {"pier", json::object()}, {"mesh", "x.stl"}};
+  expect_error([&] { scene::parse_scene(j); }, "/structure/pier", "only used with");
+}
+
+TEST(SceneStructure, MeshFileRelativeToTheSceneFile) {
+  namespace fs = std::filesystem;
+  const fs::path d = fs::temp_directory_path() / ("hs_test_scene_mesh_" + std::to_string(::getpid()));
+  fs::create_directories(d / "meshes");
+  mesh::PierParams pp;
+  pp.waterline_diameter = 2.0;
+  pp.cone_top_z = 0.5;
+  pp.cone_bottom_z = -1.0;
+  pp.neck_height = 0.5;
+  pp.shaft_diameter = 1.5;
+  pp.shaft_bottom_z = -3.0;
+  pp.segments = 16;
+  mesh::write_stl_ascii(mesh::make_pier(pp), (d / "meshes" / "p.stl").string());
+  json j = minimal();
+  j["structure"] = {{"type", "mesh"}, {"mesh", "meshes/p.stl"}, {"position", {-5, 0, 0}}};
+  std::ofstream(d / "s.json") << j.dump();
+  const scene::Scene s = scene::load_scene_file((d / "s.json").string());
+  EXPECT_EQ(s.structure.mesh_path, (d / "meshes" / "p.stl").string());
+  scene::Built b = scene::build_engine(s);
+  EXPECT_EQ(b.structure_parts, (std::vector<std::string>{"neck", "cone", "shaft"}));
+  EXPECT_NEAR(b.structure_radius, mesh::pier_cone_radius(pp, -1.0), 1e-9);
+  expect_error([&] { scene::iso_inputs(s, 0); }, "/structure/type", "parametric pier");
+  fs::remove_all(d);
 }
