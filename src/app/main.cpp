@@ -3,10 +3,12 @@
 //   hybridsim check scene.json [--set path=value]...          validate, print derived figures
 //   hybridsim iso FILE.json                                   ISO 19906 estimate as JSON
 //   hybridsim bench NAME                                      built-in benchmark (JSON line)
+//   hybridsim ridge scene.json [-o ridge.h5]                  build a ridge of rigid blocks
 //   hybridsim --version
 // Exit codes: 0 ok, 1 internal error, 2 bad input (hs::InputError), 3 simulation unstable
 // (hs::SimulationError; the output written so far is kept).
 #include "app/bench.h"
+#include "app/ridge_command.h"
 #include "app/run.h"
 #include "common/error.h"
 
@@ -52,6 +54,11 @@ int main(int argc, char** argv) {
   CLI::App* iso = app.add_subcommand("iso", "print the ISO 19906 cone load (JSON, N) for a scene (its ice and pier) "
                                              "or for a plain object of ISO inputs (docs/iso19906.md)");
   add_common(iso, false);
+  CLI::App* ridge = app.add_subcommand("ridge", "build a ridge (rigid blocks rise and settle under the ice), "
+                                               "save it to HDF5 and print its report (docs/ridge.md)");
+  std::string ridge_scene, ridge_out;
+  ridge->add_option("scene", ridge_scene, "ridge scene file (JSON with a \"ridge\" object)")->required();
+  ridge->add_option("-o,--output", ridge_out, "output HDF5 file (default: <name>_ridge.h5)");
   CLI::App* bench = app.add_subcommand("bench", "run a built-in benchmark and print one JSON line");
   bench->add_option("name", bench_name, "benchmark name")->required();
 
@@ -64,6 +71,7 @@ int main(int argc, char** argv) {
 
   try {
     if (*bench) return hs::app::run_benchmark(bench_name, std::cout, std::cerr);
+    if (*ridge) return hs::app::ridge_command(ridge_scene, ridge_out, std::cout);
     if (opt.scene_path.empty()) {
       std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
       return 2;

@@ -331,3 +331,21 @@ TEST(CliStructure, MissingMeshFileNamesThePath) {
   EXPECT_NE(r.err.find("error: /structure/mesh"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("meshes/nope.stl"), std::string::npos) << r.err;
 }
+
+TEST(CliRidge, BuildsASmallRidgeAndRejectsUnknownKeys) {
+  // A small ridge (30-degree shoulders, 3 m along the ridge, 0.2 m blocks): ~1 s.
+  write("ridge.json", R"({"name": "small", "ridge": {
+      "level_ice_thickness": 0.2, "consolidated_layer_thickness": 0.3, "consolidated_layer_width": 2.0,
+      "keel_depth": 2.0, "shoulder_slope_deg": 30, "sail_height": 0.4, "length": 3.0,
+      "block_thickness": 0.2, "seed": 11, "settle": {"max_time": 40}}})");
+  const Result r = hybridsim("ridge ridge.json -o small_ridge.h5");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const json rep = json::parse(r.out);
+  EXPECT_GT(rep.at("blocks").at("total").get<int>(), 20) << r.out;
+  EXPECT_TRUE(fs::exists(work_dir() / "small_ridge.h5"));
+  write("bad_ridge.json", R"({"name": "x", "ridge": {"keel_depht": 3}})");
+  const Result b = hybridsim("ridge bad_ridge.json");
+  EXPECT_EQ(b.rc, 2);
+  EXPECT_NE(b.err.find("/ridge/keel_depht"), std::string::npos) << b.err;
+  EXPECT_NE(b.err.find("keel_depth"), std::string::npos) << b.err;
+}
