@@ -4,7 +4,7 @@
 # Output: out/<scene name>.h5 (+ .xmf for ParaView) and PNG plots in out/.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-SCENE="${1:-scenes/demo_bonded_ice.json}"
+SCENE="${1:-scenes/level_ice_cone.json}"
 bash scripts/build.sh hybridsim
 mkdir -p out
 name="$(basename "${SCENE%.json}")"
