@@ -420,6 +420,19 @@ void Engine::field_forces() {
       ps_.f[i] += water_force(def_.water, gmag, ps_.x[i], ps_.v[i], ps_.radius[i], ps_.buoyant_volume[i]);
 }
 
+ContactResult Engine::wall_contact(double delta, double r, const Vec3& n, double vn, const Vec3& vt,
+                                   double m, double friction, Vec3& xi) const {
+  // A wall is a sphere of infinite radius and mass: R* = r, m_eff = m.
+  if (def_.contact_model == ContactModel::LinearSpringDashpot) {
+    LinearContactParams p = def_.contact;
+    p.mu = friction;
+    return linear_contact(p, delta, n, vn, vt, m, dt_, xi);
+  }
+  HertzContactParams p = def_.hertz;
+  p.mu = friction;
+  return hertz_contact(p, delta, r, n, vn, vt, m, dt_, xi);
+}
+
 void Engine::wall_forces() {
   const std::size_t n = ps_.owned();
   for (std::size_t k = 0; k < walls_.size(); ++k) {
@@ -440,16 +453,7 @@ void Engine::wall_forces() {
       const double vn = vrel.dot(w.normal);
       const Vec3 vt = vrel - vn * w.normal;
       const double m = ps_.mass[i];
-      ContactResult res;
-      if (def_.contact_model == ContactModel::LinearSpringDashpot) {
-        LinearContactParams p = def_.contact;
-        p.mu = w.friction;
-        res = linear_contact(p, delta, w.normal, vn, vt, m, dt_, hist[i]);
-      } else {
-        HertzContactParams p = def_.hertz;
-        p.mu = w.friction;
-        res = hertz_contact(p, delta, r, w.normal, vn, vt, m, dt_, hist[i]);
-      }
+      const ContactResult res = wall_contact(delta, r, w.normal, vn, vt, m, w.friction, hist[i]);
       ps_.f[i] += res.force;
       ps_.torque[i] += a.cross(res.force);
       total -= res.force;
@@ -493,16 +497,7 @@ void Engine::mesh_forces() {
         const MeshWall::Key key{ps_.gid[i], (static_cast<std::uint64_t>(c.feature) << 32) | c.feature_id};
         auto it = m.history.find(key);
         Vec3 xi = it == m.history.end() ? Vec3::Zero() : it->second;
-        ContactResult res;
-        if (def_.contact_model == ContactModel::LinearSpringDashpot) {
-          LinearContactParams p = def_.contact;
-          p.mu = m.def.friction;
-          res = linear_contact(p, delta, nrm, vn, vt, ps_.mass[i], dt_, xi);
-        } else {
-          HertzContactParams p = def_.hertz;
-          p.mu = m.def.friction;
-          res = hertz_contact(p, delta, r, nrm, vn, vt, ps_.mass[i], dt_, xi);
-        }
+        const ContactResult res = wall_contact(delta, r, nrm, vn, vt, ps_.mass[i], m.def.friction, xi);
         m.next_history.emplace(key, xi);
         ps_.f[i] += res.force;
         ps_.torque[i] += a.cross(res.force);

@@ -175,6 +175,9 @@ class Engine {
   void sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint32_t ncells);
   void field_forces();
   void wall_forces();
+  /// Contact law against an immovable wall (plane or mesh) with the wall's friction.
+  ContactResult wall_contact(double delta, double r, const Vec3& n, double vn, const Vec3& vt, double m,
+                             double friction, Vec3& xi) const;
   void mesh_forces();
   template <class Law>
   void pair_forces(const Law& law);
