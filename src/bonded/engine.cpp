@@ -66,14 +66,17 @@ inline void rotate_orientation(Quat& q, const Vec3& w, double dt) {
 
 }  // namespace
 
-Engine::Engine(const EngineDef& def) : def_(def) { dt_ = def.dt; }
+Engine::Engine(const EngineDef& def) : def_(def), dt_auto_(def.dt == 0.0) { dt_ = def.dt; }
 
 std::size_t Engine::add_particle(const ParticleInit& p) {
   const std::size_t i = ps_.add(p, ps_.next_gid());
   for (auto& h : wall_hist_) h.push_back(Vec3::Zero());
   need_rebuild_ = true;
   forces_valid_ = false;
-  if (dt_ == 0.0) dt_ = eq2_time_step();
+  if (dt_auto_ && p.radius < min_radius_) {  // Eq. 2 follows the smallest particle
+    min_radius_ = p.radius;
+    dt_ = def_.dt_alpha * 2.0 * min_radius_ * std::sqrt(def_.density / def_.youngs_modulus);
+  }
   return i;
 }
 
@@ -354,10 +357,13 @@ void Engine::build_neighbors() {
       partner_list_[fill[b.j]++] = b.i;
     }
   }
-  // Contact history survives the rebuild, keyed by global ids.
+  // Contact history survives the rebuild, keyed by global ids. xi is the tangential
+  // displacement of j relative to i, so it is stored oriented from the lower to the
+  // higher global id and flipped back if the new list orders the pair the other way.
   std::unordered_map<PairKey, Vec3, PairKeyHash> history;
   for (const auto& p : pairs_)
-    if (p.xi.squaredNorm() > 0.0) history.emplace(make_key(ps_.gid[p.i], ps_.gid[p.j]), p.xi);
+    if (p.xi.squaredNorm() > 0.0)
+      history.emplace(make_key(ps_.gid[p.i], ps_.gid[p.j]), ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
 
   pairs_.clear();
   for (std::uint32_t i = 0; i < n; ++i) {
@@ -394,7 +400,7 @@ void Engine::build_neighbors() {
   if (!history.empty())
     for (auto& p : pairs_) {
       auto it = history.find(make_key(ps_.gid[p.i], ps_.gid[p.j]));
-      if (it != history.end()) p.xi = it->second;
+      if (it != history.end()) p.xi = ps_.gid[p.i] < ps_.gid[p.j] ? it->second : Vec3(-it->second);
     }
   x_at_build_.assign(ps_.x.begin(), ps_.x.end());
   max_disp2_ = 0.0;
@@ -426,11 +432,11 @@ ContactResult Engine::wall_contact(double delta, double r, const Vec3& n, double
   if (def_.contact_model == ContactModel::LinearSpringDashpot) {
     LinearContactParams p = def_.contact;
     p.mu = friction;
-    return linear_contact(p, delta, n, vn, vt, m, dt_, xi);
+    return linear_contact(p, delta, n, vn, vt, m, history_dt_, xi);
   }
   HertzContactParams p = def_.hertz;
   p.mu = friction;
-  return hertz_contact(p, delta, r, n, vn, vt, m, dt_, xi);
+  return hertz_contact(p, delta, r, n, vn, vt, m, history_dt_, xi);
 }
 
 void Engine::wall_forces() {
@@ -460,7 +466,7 @@ void Engine::wall_forces() {
       if (delta / r > worst_overlap_ratio_) {
         worst_overlap_ratio_ = delta / r;
         worst_overlap_i_ = static_cast<std::uint32_t>(i);
-        worst_overlap_j_ = ParticleStore::kNone - static_cast<std::uint32_t>(k);  // wall k
+        worst_overlap_j_ = ParticleStore::kNone - 1 - static_cast<std::uint32_t>(k);  // plane wall k
       }
     }
     wall_force_[k] = total;
@@ -530,7 +536,7 @@ void Engine::pair_forces(const Law& law) {
   const Vec3* w = ps_.omega.data();
   const double* r = ps_.radius.data();
   const double* im = ps_.inv_mass.data();
-  const double dt = dt_;
+  const double dt = history_dt_;
   double worst = 0.0;
   std::uint32_t wi = 0, wj = 0;
   for (auto& p : pairs_) {
@@ -612,8 +618,9 @@ void Engine::bond_forces() {
   bonds_.resize(w);
 }
 
-void Engine::compute_forces() {
+void Engine::evaluate_forces(double history_dt) {
   if (need_rebuild_ || x_at_build_.size() != ps_.size()) build_neighbors();
+  history_dt_ = history_dt;
   worst_overlap_ratio_ = 0.0;
   field_forces();
   wall_forces();
@@ -648,7 +655,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and a mesh structure";
     else if (worst_overlap_i_ < ps_.size())
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and wall '"
-        << walls_[ParticleStore::kNone - worst_overlap_j_].name << "'";
+        << walls_[ParticleStore::kNone - 1 - worst_overlap_j_].name << "'";
   }
   if (!bad) return;
   std::ostringstream m;
@@ -661,7 +668,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
 }
 
 void Engine::step() {
-  if (!forces_valid_) compute_forces();
+  if (!forces_valid_) evaluate_forces(0.0);
   const std::size_t n = ps_.owned();
   const double dt = dt_, hdt = 0.5 * dt_;
   const bool rotate = !bonds_.empty();
@@ -687,7 +694,7 @@ void Engine::step() {
   ++step_;
   const double half_skin = 0.5 * skin();
   if (need_rebuild_ || disp2 > half_skin * half_skin) build_neighbors();
-  compute_forces();
+  evaluate_forces(dt);
   // The rebuild may have reordered the store: take every array afresh.
   v = ps_.v.data();
   w = ps_.omega.data();

@@ -11,7 +11,7 @@
 //
 // Bonds are the authority on bonding: the contact-pair list never holds a bonded pair.
 // When a bond breaks its force is removed at once and the pair joins the contact list,
-// so the two particles interact by contact from the same step on.
+// so the two particles interact by contact from the next force evaluation on.
 #pragma once
 
 #include "bond_parallel.h"
@@ -134,7 +134,11 @@ class Engine {
   /// Throws hs::InputError naming the limit and the fix if dt > critical_time_step().
   void check_time_step() const;
   double dt() const { return dt_; }
-  void set_dt(double dt) { dt_ = dt; }
+  /// Fixes the time step (it no longer follows Eq. 2 as particles are added).
+  void set_dt(double dt) {
+    dt_ = dt;
+    dt_auto_ = false;
+  }
 
   // ---- running ----
   void step();
@@ -167,10 +171,13 @@ class Engine {
   /// Called after every step (for probes/output); optional.
   std::function<void(const Engine&)> on_step;
 
-  /// Forces for the current state without advancing (primes the integrator).
-  void compute_forces();
+  /// Forces for the current state without advancing anything: tangential springs are
+  /// not incremented (a re-evaluation at the same state must not move them).
+  void compute_forces() { evaluate_forces(0.0); }
 
  private:
+  /// Forces at the current state; tangential springs advance by v_t * history_dt.
+  void evaluate_forces(double history_dt);
   void build_neighbors();
   void sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint32_t ncells);
   void field_forces();
@@ -216,6 +223,9 @@ class Engine {
   bool forces_valid_ = false;
   bool need_rebuild_ = true;
   double dt_ = 0.0;
+  bool dt_auto_ = true;            ///< dt follows Eq. 2 (def.dt == 0 and no set_dt)
+  double min_radius_ = INFINITY;
+  double history_dt_ = 0.0;        ///< spring-history increment of the current force evaluation
   double time_ = 0.0;
   std::uint64_t step_ = 0;
   StepStats stats_;

@@ -172,7 +172,8 @@ TEST(Cli, UnstableRunExitsWithThreeAndKeepsTheOutput) {
 
 namespace {
 
-/// A 2 m pier pushed at 2 m/s into a small sheet centred on its axis.
+/// A 2 m pier pushed at 1 m/s into a small sheet centred on its axis (soft ice, E = 1e7 Pa:
+/// at 2 m/s against the far wall the contacts jam past the 0.5 r overlap limit).
 json tiny_pier() {
   return json::parse(R"({
     "name": "tiny_pier",
@@ -186,7 +187,7 @@ json tiny_pier() {
       "pier": {"waterline_diameter": 2.0, "cone_top_z": 0.5, "cone_bottom_z": -1.0, "neck_height": 0.5,
                "shaft_diameter": 1.5, "shaft_bottom_z": -3.0, "segments": 32},
       "position": [-1.38, 0, 0],
-      "velocity": [2.0, 0, 0]
+      "velocity": [1.0, 0, 0]
     }
   })");
 }

@@ -192,3 +192,41 @@ TEST(Engine, DeterministicAndIndependentOfInsertionOrder) {
               (unsigned long long)a.second, (unsigned long long)b.second);
   EXPECT_LT(max_abs(a.first, b.first), 1e-9);
 }
+
+TEST(Engine, FrictionHistoryIsCarriedThroughNeighbourRebuilds) {
+  // A slider pressed against a frozen sphere above it (gravity points up here), held by
+  // a bond that breaks at once under a sideways pull, then held by static friction (its
+  // rotation is locked so it cannot roll). A run with ~60 neighbour rebuilds (forced by
+  // a fast far-away particle) must follow the run with 3: the tangential spring is
+  // carried through every rebuild by global id, with its orientation (dropping it moves
+  // the slider 1.5e-5 m; this test then fails).
+  auto run = [](bool with_rebuilds) {
+    test::Ice ice;
+    EngineDef d = test::no_field_def(ice);
+    d.contact.mu = 0.5;
+    d.contact.zeta_n = d.contact.zeta_t = 0.5;
+    d.gravity = Vec3(0.5, 0.0, 9.81);
+    d.skin = 0.1;
+    d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), 0.5 * ice.D, 1e9, 1.0, 0.0, 1, 1);
+    Engine e(d);
+    auto base = test::sphere_at(ice, Vec3(0, 0, ice.D - 1e-4));
+    base.flags = kFlagFrozen;
+    e.add_particle(base);                                  // global id 0, above
+    e.add_particle(test::sphere_at(ice, Vec3(0, 0, 0)));  // global id 1, the slider
+    e.add_bond(0, 1);
+    e.particles().inv_inertia[e.particles().local(1)] = 0.0;
+    auto fly = test::sphere_at(ice, Vec3(-5, 3, 0));
+    fly.v = Vec3(0, with_rebuilds ? 20.0 : 0.0, 0);  // crosses half the skin every ~50 steps
+    e.add_particle(fly);
+    e.run(3000);
+    const auto& p = e.particles();
+    return std::make_pair(p.x[p.local(1)], e.stats().neighbor_rebuilds);
+  };
+  const auto quiet = run(false), busy = run(true);
+  std::printf("friction history: slider at x = %.6e m (%llu rebuilds) vs %.6e m (%llu rebuilds)\n", quiet.first.x(),
+              (unsigned long long)quiet.second, busy.first.x(), (unsigned long long)busy.second);
+  EXPECT_LE(quiet.second, 3u);
+  EXPECT_GT(busy.second, 50u);
+  EXPECT_LT(std::abs(quiet.first.x()), 1e-3) << "static friction must hold the slider";
+  EXPECT_LT((busy.first - quiet.first).norm(), 1e-9);
+}
