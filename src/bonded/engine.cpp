@@ -3,6 +3,7 @@
 #include "common/error.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
@@ -11,17 +12,6 @@
 namespace hs::bonded {
 
 namespace {
-
-struct PairKey {
-  GlobalId a, b;
-  bool operator==(const PairKey& o) const { return a == o.a && b == o.b; }
-};
-struct PairKeyHash {
-  std::size_t operator()(const PairKey& k) const {
-    return std::hash<std::uint64_t>()(k.a * 0x9E3779B97F4A7C15ull ^ (k.b + 0x632BE59BD9B4E019ull));
-  }
-};
-PairKey make_key(GlobalId x, GlobalId y) { return x < y ? PairKey{x, y} : PairKey{y, x}; }
 
 // Law adaptors: one signature for the pair loop, so it is compiled once per law.
 struct LinearLaw {
@@ -73,9 +63,10 @@ std::size_t Engine::add_particle(const ParticleInit& p) {
   for (auto& h : wall_hist_) h.push_back(Vec3::Zero());
   need_rebuild_ = true;
   forces_valid_ = false;
-  if (dt_auto_ && p.radius < min_radius_) {  // Eq. 2 follows the smallest particle
+  if (p.radius < min_radius_) {
     min_radius_ = p.radius;
-    dt_ = def_.dt_alpha * 2.0 * min_radius_ * std::sqrt(def_.density / def_.youngs_modulus);
+    if (dt_auto_)  // Eq. 2 follows the smallest particle
+      dt_ = def_.dt_alpha * 2.0 * min_radius_ * std::sqrt(def_.density / def_.youngs_modulus);
   }
   return i;
 }
@@ -175,6 +166,7 @@ int Engine::add_mesh_wall(MeshWallDef def) {
 double Engine::eq2_time_step() const {
   double rmin = INFINITY;
   for (std::size_t i = 0; i < ps_.owned(); ++i) rmin = std::min(rmin, ps_.radius[i]);
+  rmin = -global_max(-rmin);
   if (!std::isfinite(rmin)) return 0.0;
   return def_.dt_alpha * 2.0 * rmin * std::sqrt(def_.density / def_.youngs_modulus);
 }
@@ -188,6 +180,14 @@ double Engine::critical_time_step() const {
     r = std::max(r, ps_.radius[i]);
     rmin = std::min(rmin, ps_.radius[i]);
     zb = std::max(zb, ps_.bond_count[i]);
+  }
+  bool has_kind[2] = {false, false};
+  for (const auto& b : bonds_) has_kind[static_cast<int>(b.kind)] = true;
+  if (parallel()) {
+    double g[7] = {inv_m, inv_i, r, -rmin, static_cast<double>(zb), has_kind[0] ? 1.0 : 0.0, has_kind[1] ? 1.0 : 0.0};
+    comm_->max(g, 7);
+    inv_m = g[0]; inv_i = g[1]; r = g[2]; rmin = -g[3]; zb = static_cast<std::uint8_t>(g[4]);
+    has_kind[0] = g[5] > 0.0; has_kind[1] = g[6] > 0.0;
   }
   if (inv_m == 0.0) return INFINITY;
   const double m = 1.0 / inv_m;
@@ -207,8 +207,6 @@ double Engine::critical_time_step() const {
   }
   const double s_contact = 2.0 * inv_m * kn + kt * (2.0 * inv_m + 2.0 * r * r * inv_i);
   double s_bond = 0.0;
-  bool has_kind[2] = {false, false};
-  for (const auto& b : bonds_) has_kind[static_cast<int>(b.kind)] = true;
   for (int k = 0; k < 2; ++k) {
     if (!has_kind[k]) continue;
     const auto& p = def_.bond[k];
@@ -246,9 +244,8 @@ void Engine::check_time_step() const {
 
 double Engine::skin() const {
   if (def_.skin > 0.0) return def_.skin;
-  double rmin = INFINITY;
-  for (std::size_t i = 0; i < ps_.size(); ++i) rmin = std::min(rmin, ps_.radius[i]);
-  return std::isfinite(rmin) ? 0.2 * rmin : 0.0;
+  // The smallest particle ever added (every rank added the same ones before distribute()).
+  return std::isfinite(min_radius_) ? 0.2 * min_radius_ : 0.0;
 }
 
 // ---------------------------------------------------------------- neighbours
@@ -258,7 +255,8 @@ void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint
   std::vector<std::uint32_t> count(ncells + 1, 0);
   for (std::size_t i = 0; i < n; ++i) ++count[cell_of[i] + 1];
   for (std::uint32_t c = 0; c < ncells; ++c) count[c + 1] += count[c];
-  std::vector<std::uint32_t> order(n), new_of_old(n);
+  std::vector<std::uint32_t> order(n), new_of_old(ps_.size());
+  for (std::size_t g = n; g < ps_.size(); ++g) new_of_old[g] = static_cast<std::uint32_t>(g);  // ghosts stay
   for (std::size_t i = 0; i < n; ++i) {
     const std::uint32_t k = count[cell_of[i]]++;
     order[k] = static_cast<std::uint32_t>(i);
@@ -285,8 +283,11 @@ void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint
   for (auto& h : wall_hist_) {
     std::vector<Vec3> nh(h.size());
     for (std::size_t k = 0; k < n; ++k) nh[k] = h[order[k]];
+    for (std::size_t k = n; k < h.size(); ++k) nh[k] = h[k];
     h.swap(nh);
   }
+  for (auto& list : ghost_send_)
+    for (auto& i : list) i = new_of_old[i];
 }
 
 void Engine::build_neighbors() {
@@ -325,7 +326,7 @@ void Engine::build_neighbors() {
     cell_coords(ps_.x[i], cx, cy, cz);
     cell_of_[i] = (static_cast<std::uint32_t>(cz) * ny + cy) * nx + cx;
   }
-  if (def_.spatial_sort && ps_.n_ghost == 0) {
+  if (def_.spatial_sort) {  // owned particles only; ghosts keep their place
     sort_spatially(cell_of_, ncells);
     for (std::size_t i = 0; i < n; ++i) {
       int cx, cy, cz;
@@ -360,10 +361,13 @@ void Engine::build_neighbors() {
   // Contact history survives the rebuild, keyed by global ids. xi is the tangential
   // displacement of j relative to i, so it is stored oriented from the lower to the
   // higher global id and flipped back if the new list orders the pair the other way.
-  std::unordered_map<PairKey, Vec3, PairKeyHash> history;
+  // (Under MPI, exchange_full() has already moved it into carried_history_.)
+  std::unordered_map<GidPair, Vec3, GidPairHash> history = std::move(carried_history_);
+  carried_history_.clear();
   for (const auto& p : pairs_)
     if (p.xi.squaredNorm() > 0.0)
-      history.emplace(make_key(ps_.gid[p.i], ps_.gid[p.j]), ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+      history.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]), ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+  const std::uint32_t n_owned = static_cast<std::uint32_t>(ps_.n_owned);
 
   pairs_.clear();
   for (std::uint32_t i = 0; i < n; ++i) {
@@ -384,7 +388,9 @@ void Engine::build_neighbors() {
           for (std::uint32_t k = cell_start_[cc]; k < cell_start_[cc + 1]; ++k) {
             const std::uint32_t j = cell_items_[k];
             if (j <= i) continue;
-            if (i >= ps_.n_owned && j >= ps_.n_owned) continue;  // ghost-ghost: not ours
+            // An owned-ghost pair is computed by the rank owning its lower global id (once,
+            // globally); ghost-ghost pairs belong to other ranks.
+            if (j >= n_owned && (i >= n_owned || ps_.gid[i] > ps_.gid[j])) continue;
             const double lim = ri + ps_.radius[j] + sk;
             if ((ps_.x[j] - xi).squaredNorm() > lim * lim) continue;
             bool bonded = false;
@@ -399,7 +405,7 @@ void Engine::build_neighbors() {
   }
   if (!history.empty())
     for (auto& p : pairs_) {
-      auto it = history.find(make_key(ps_.gid[p.i], ps_.gid[p.j]));
+      auto it = history.find(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]));
       if (it != history.end()) p.xi = ps_.gid[p.i] < ps_.gid[p.j] ? it->second : Vec3(-it->second);
     }
   x_at_build_.assign(ps_.x.begin(), ps_.x.end());
@@ -594,7 +600,7 @@ void Engine::bond_forces() {
       // Broken: its force is removed from this step on. Mark via an impossible kind.
       b.kind = static_cast<BondKind>(0xff);
       ++n_broken;
-      if (tension) ++stats_.bonds_broken_tension; else ++stats_.bonds_broken_shear;
+      ++broken_now_[tension ? 0 : 1];
       continue;
     }
     f[j] += res.fj;
@@ -603,7 +609,6 @@ void Engine::bond_forces() {
     t[j] += res.tj;
   }
   if (n_broken == 0) return;
-  stats_.bonds_broken += n_broken;
   std::size_t w = 0;
   for (std::size_t r = 0; r < bonds_.size(); ++r) {
     const Bond& b = bonds_[r];
@@ -618,9 +623,24 @@ void Engine::bond_forces() {
   bonds_.resize(w);
 }
 
+void Engine::rebuild() {
+  if (parallel()) exchange_full();
+  build_neighbors();
+}
+
+void Engine::sync_before_forces() {
+  bool need = need_rebuild_ || x_at_build_.size() != ps_.size();
+  if (parallel()) need = global_max(need ? 1.0 : 0.0) > 0.0;
+  if (need)
+    rebuild();
+  else if (parallel())
+    forward_ghosts();
+}
+
 void Engine::evaluate_forces(double history_dt) {
-  if (need_rebuild_ || x_at_build_.size() != ps_.size()) build_neighbors();
+  const auto t0 = std::chrono::steady_clock::now();
   history_dt_ = history_dt;
+  broken_now_[0] = broken_now_[1] = 0;
   worst_overlap_ratio_ = 0.0;
   field_forces();
   wall_forces();
@@ -630,12 +650,35 @@ void Engine::evaluate_forces(double history_dt) {
   else
     pair_forces(HertzLaw{def_.hertz});
   bond_forces();
+  const double dt_force = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  pstats_.force_seconds += dt_force;
+  force_seconds_since_balance_ += dt_force;
+  if (parallel()) {
+    reverse_ghost_forces();
+    reduce_loads();  // also sums broken_now_ over the ranks
+  }
+  stats_.bonds_broken_tension += broken_now_[0];
+  stats_.bonds_broken_shear += broken_now_[1];
+  stats_.bonds_broken += broken_now_[0] + broken_now_[1];
   forces_valid_ = true;
 }
 
 // ---------------------------------------------------------------- integration
 
 void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
+  const bool bad_here = !(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed) ||
+                        !(worst_overlap_ratio_ <= def_.limits.max_overlap_ratio);
+  if (parallel()) {
+    if (global_max(bad_here ? 1.0 : 0.0) == 0.0) return;
+    if (!bad_here) {
+      std::ostringstream m;
+      m << "simulation became unstable on another rank at step " << step_ << " (t = " << time_
+        << " s); that rank's message names the particle. Output written so far is kept.";
+      throw SimulationError(m.str());
+    }
+  } else if (!bad_here) {
+    return;
+  }
   std::ostringstream s;
   s.precision(6);
   bool bad = false;
@@ -668,8 +711,11 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
 }
 
 void Engine::step() {
-  if (!forces_valid_) evaluate_forces(0.0);
-  const std::size_t n = ps_.owned();
+  if (!forces_valid_) {
+    sync_before_forces();
+    evaluate_forces(0.0);
+  }
+  std::size_t n = ps_.owned();
   const double dt = dt_, hdt = 0.5 * dt_;
   const bool rotate = !bonds_.empty();
   Vec3* x = ps_.x.data();
@@ -693,9 +739,16 @@ void Engine::step() {
   time_ += dt;
   ++step_;
   const double half_skin = 0.5 * skin();
-  if (need_rebuild_ || disp2 > half_skin * half_skin) build_neighbors();
+  bool rebuild_now = need_rebuild_ || disp2 > half_skin * half_skin;
+  if (parallel()) rebuild_now = global_max(rebuild_now ? 1.0 : 0.0) > 0.0;
+  if (rebuild_now)
+    rebuild();
+  else if (parallel())
+    forward_ghosts();
   evaluate_forces(dt);
-  // The rebuild may have reordered the store: take every array afresh.
+  // The rebuild may have reordered the store (and, under MPI, changed who is owned): take every
+  // array and the owned count afresh.
+  n = ps_.owned();
   v = ps_.v.data();
   w = ps_.omega.data();
   f = ps_.f.data();
@@ -748,6 +801,12 @@ EnergyReport Engine::energy() const {
                              ? LinearLaw{def_.contact}.energy(rs - dist, rstar, p.xi)
                              : HertzLaw{def_.hertz}.energy(rs - dist, rstar, p.xi);
   }
+  if (parallel()) {  // every bond and contact pair lives on exactly one rank
+    double v[6] = {e.kinetic_translational, e.kinetic_rotational, e.gravity_potential,
+                   e.buoyancy_potential, e.bond_elastic, e.contact_elastic};
+    comm_->sum(v, 6);
+    e = {v[0], v[1], v[2], v[3], v[4], v[5]};
+  }
   return e;
 }
 
@@ -755,6 +814,7 @@ Vec3 Engine::linear_momentum() const {
   Vec3 p = Vec3::Zero();
   for (std::size_t i = 0; i < ps_.owned(); ++i)
     if (ps_.inv_mass[i] > 0.0) p += ps_.mass[i] * ps_.v[i];
+  if (parallel()) comm_->sum(p.data(), 3);
   return p;
 }
 
@@ -764,6 +824,7 @@ Vec3 Engine::angular_momentum(const Vec3& about) const {
     if (ps_.inv_mass[i] == 0.0) continue;
     l += (ps_.x[i] - about).cross(ps_.mass[i] * ps_.v[i]) + ps_.omega[i] / ps_.inv_inertia[i];
   }
+  if (parallel()) comm_->sum(l.data(), 3);
   return l;
 }
 

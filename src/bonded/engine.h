@@ -21,7 +21,10 @@
 #include "particle_store.h"
 #include "wall.h"
 #include "water.h"
+#include "parallel/comm.h"
+#include "parallel/decomposition.h"
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -56,6 +59,39 @@ struct EngineDef {
   double skin = 0.0;                 ///< Verlet skin, m; 0 = 0.1 * smallest diameter
   bool spatial_sort = true;          ///< reorder particles by cell at neighbour rebuilds
   StabilityLimits limits;
+};
+
+/// How the engine spreads over MPI ranks (docs/parallel.md).
+struct ParallelDef {
+  std::array<int, 3> grid{0, 0, 0};      ///< boxes per axis; all 0 = choose (least cut area)
+  std::uint64_t balance_interval = 500;  ///< steps between load-balance checks (at a neighbour rebuild); 0 = never
+  enum class Cost { Work, Time };
+  /// Work: per-particle cost counted from its contacts and bonds (deterministic; default).
+  /// Time: the same, scaled per rank by its measured force-evaluation time (adapts to uneven
+  /// hardware, but cut positions then vary from run to run, and so do the last bits of the results).
+  Cost cost = Cost::Work;
+  int histogram_bins = 1024;             ///< resolution of the cost histogram along each axis
+};
+
+/// Counters of the parallel machinery (zero in a serial run).
+struct ParallelStats {
+  std::uint64_t exchanges = 0;     ///< full exchanges (migration + new ghost lists), one per rebuild
+  std::uint64_t migrated = 0;      ///< particles this rank sent to another
+  std::uint64_t balances = 0;      ///< times the cuts were moved
+  double comm_seconds = 0.0;       ///< wall time in ghost exchanges and reductions on this rank
+  double force_seconds = 0.0;      ///< wall time in force evaluation on this rank (cost measure)
+};
+
+/// A pair of global ids in canonical order (a < b): the key of contact history.
+struct GidPair {
+  GlobalId a, b;
+  static GidPair of(GlobalId x, GlobalId y) { return x < y ? GidPair{x, y} : GidPair{y, x}; }
+  bool operator==(const GidPair& o) const { return a == o.a && b == o.b; }
+};
+struct GidPairHash {
+  std::size_t operator()(const GidPair& k) const {
+    return std::hash<std::uint64_t>()(k.a * 0x9E3779B97F4A7C15ull ^ (k.b + 0x632BE59BD9B4E019ull));
+  }
 };
 
 struct Bond {
@@ -168,17 +204,52 @@ class Engine {
   Vec3 linear_momentum() const;
   Vec3 angular_momentum(const Vec3& about = Vec3::Zero()) const;
 
+  // ---- MPI ----
+  /// Spreads a system that every rank built identically (same particles, ids and bonds) over the
+  /// ranks of `comm`: each keeps the particles in its box, the bonds whose lower-id particle it
+  /// owns, and ghost copies of its neighbours' particles within the interaction range. With a
+  /// one-rank comm nothing changes. Collective: every rank calls it, and from then on every rank
+  /// calls step(), energy(), momenta and the counts below together.
+  void distribute(const par::Comm& comm, const ParallelDef& def = {});
+  const par::Comm& comm() const { return *comm_; }
+  bool parallel() const { return comm_->parallel(); }
+  const par::Decomposition& decomposition() const { return dom_; }
+  const ParallelStats& parallel_stats() const { return pstats_; }
+  /// Totals over all ranks (collective).
+  std::int64_t global_particle_count() const;
+  std::int64_t global_bond_count() const;
+  std::size_t ghost_count() const { return ps_.n_ghost; }
+  /// Brings owned particles' bond counts up to date after bonds broke on other ranks (collective;
+  /// also done at every neighbour rebuild). A no-op in a serial run.
+  void refresh_bond_counts();
+
   /// Called after every step (for probes/output); optional.
   std::function<void(const Engine&)> on_step;
 
   /// Forces for the current state without advancing anything: tangential springs are
   /// not incremented (a re-evaluation at the same state must not move them).
-  void compute_forces() { evaluate_forces(0.0); }
+  void compute_forces() {
+    sync_before_forces();
+    evaluate_forces(0.0);
+  }
 
  private:
   /// Forces at the current state; tangential springs advance by v_t * history_dt.
   void evaluate_forces(double history_dt);
   void build_neighbors();
+  /// Neighbour rebuild; under MPI first migration, load balance and new ghost lists.
+  void rebuild();
+  /// Rebuild if anyone needs it, else refresh ghosts (collective under MPI).
+  void sync_before_forces();
+  // engine_parallel.cpp
+  void exchange_full();
+  void migrate(const std::vector<int>& dest, bool any_rank);
+  void make_ghosts();
+  void forward_ghosts();
+  void reverse_ghost_forces();
+  void reduce_loads();
+  void maybe_balance(bool force);
+  std::vector<double> particle_work() const;
   void sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint32_t ncells);
   void field_forces();
   void wall_forces();
@@ -192,6 +263,7 @@ class Engine {
   void kick_half();
   void check_blowup(std::uint32_t worst, double worst_v2) const;
   double skin() const;
+  double global_max(double v) const { return parallel() ? comm_->max(v) : v; }
 
   EngineDef def_;
   ParticleStore ps_;
@@ -232,6 +304,20 @@ class Engine {
   // overlap check of the last force pass
   double worst_overlap_ratio_ = 0.0;
   std::uint32_t worst_overlap_i_ = 0, worst_overlap_j_ = 0;
+  // parallel state (engine_parallel.cpp)
+  const par::Comm* comm_ = &par::serial();
+  ParallelDef pdef_;
+  par::Decomposition dom_;
+  ParallelStats pstats_;
+  std::vector<int> peers_;                             ///< ranks we exchange ghosts with (ascending)
+  std::vector<std::vector<std::uint32_t>> ghost_send_; ///< per peer: our owned particles it holds as ghosts
+  std::vector<std::uint32_t> ghost_start_, ghost_n_;   ///< per peer: its ghosts' range in our store
+  double halo_ = 0.0;
+  double max_bond_length_ = 0.0;
+  std::uint64_t last_balance_step_ = 0;
+  double force_seconds_since_balance_ = 0.0;
+  std::unordered_map<GidPair, Vec3, GidPairHash> carried_history_;  ///< contact history between exchange and build
+  std::uint64_t broken_now_[2] = {0, 0};               ///< tension, shear breaks of this force evaluation
   // scratch for neighbour build
   std::vector<std::uint32_t> cell_start_, cell_items_, cell_of_;
   std::vector<std::uint32_t> partner_start_, partner_list_;

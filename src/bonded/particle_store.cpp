@@ -38,6 +38,32 @@ std::size_t ParticleStore::add(const ParticleInit& p, GlobalId id) {
   return i;
 }
 
+ParticleRecord ParticleStore::record(std::size_t i) const {
+  return {x[i], v[i], omega[i], q[i], radius[i], inv_mass[i], inv_inertia[i], mass[i], buoyant_volume[i],
+          gid[i], material[i], flags[i], bond_count[i]};
+}
+
+void ParticleStore::push(const ParticleRecord& r) {
+  const std::size_t i = x.size();
+  x.push_back(r.x); v.push_back(r.v); f.push_back(Vec3::Zero());
+  omega.push_back(r.omega); torque.push_back(Vec3::Zero()); q.push_back(r.q);
+  radius.push_back(r.radius); inv_mass.push_back(r.inv_mass); inv_inertia.push_back(r.inv_inertia);
+  mass.push_back(r.mass); buoyant_volume.push_back(r.buoyant_volume); gid.push_back(r.gid);
+  material.push_back(r.material); flags.push_back(r.flags); bond_count.push_back(r.bond_count);
+  index_[r.gid] = static_cast<std::uint32_t>(i);
+  if (r.gid >= next_gid_) next_gid_ = r.gid + 1;
+}
+
+void ParticleStore::truncate(std::size_t n) {
+  if (n >= size()) return;
+  for (std::size_t i = n; i < size(); ++i) index_.erase(gid[i]);
+  x.resize(n); v.resize(n); f.resize(n); omega.resize(n); torque.resize(n); q.resize(n);
+  radius.resize(n); inv_mass.resize(n); inv_inertia.resize(n); mass.resize(n);
+  buoyant_volume.resize(n); gid.resize(n); material.resize(n); flags.resize(n); bond_count.resize(n);
+  n_owned = std::min(n_owned, n);
+  n_ghost = n - n_owned;
+}
+
 template <class T>
 static void apply_order(std::vector<T>& a, const std::vector<std::uint32_t>& order) {
   std::vector<T> b;

@@ -39,6 +39,16 @@ struct ParticleInit {
   std::uint8_t flags = kFlagNone;
 };
 
+/// Everything a particle carries, packed for migration and ghost copies between ranks.
+struct ParticleRecord {
+  Vec3 x, v, omega;
+  Quat q;
+  double radius, inv_mass, inv_inertia, mass, buoyant_volume;
+  GlobalId gid;
+  MaterialIndex material;
+  std::uint8_t flags, bond_count;
+};
+
 class ParticleStore {
  public:
   // ---- hot state, touched every step ----
@@ -70,6 +80,12 @@ class ParticleStore {
   /// Next unused global id (ids are never reused).
   GlobalId next_gid() const { return next_gid_; }
   GlobalId add_auto(const ParticleInit& p) { return gid[add(p, next_gid_)]; }
+
+  ParticleRecord record(std::size_t i) const;
+  /// Appends a particle at the end of the arrays (the caller keeps n_owned / n_ghost right).
+  void push(const ParticleRecord& r);
+  /// Keeps the first n particles (drops ghosts when n == n_owned).
+  void truncate(std::size_t n);
 
   /// Reorder owned particles by `order` (new index k takes old index order[k]).
   void permute(const std::vector<std::uint32_t>& order);

@@ -1,0 +1,520 @@
+// The engine's MPI side: distribution, migration, ghosts, reverse force communication,
+// reductions and load balance. See docs/parallel.md for the design and its cost model.
+//
+// Ownership rules (they make every interaction computed exactly once, on one rank):
+//   * a particle belongs to the rank whose box holds its centre (checked at every rebuild);
+//   * a bond lives on the rank owning its lower global id (gi), and migrates with that particle;
+//   * a contact pair of an owned and a ghost particle is computed by the rank owning the lower
+//     global id; its tangential history migrates with that particle;
+//   * plane-wall and mesh-wall contact history migrates with its particle.
+// Forces that a rank computes on its ghosts are sent back to their owners after every force
+// evaluation ("reverse communication"), so integration only ever touches owned particles.
+#include "engine.h"
+
+#include "common/error.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <unordered_set>
+
+namespace hs::bonded {
+
+namespace {
+
+using par::Bytes;
+
+// Messages are raw bytes of plain structs. Eigen's fixed-size vectors and quaternions are plain
+// arrays of doubles (not formally trivially copyable: they declare copy constructors), and all
+// ranks run the same binary, so memcpy is exact.
+template <class T>
+void put(Bytes& b, const T& v) {
+  const std::size_t o = b.size();
+  b.resize(o + sizeof(T));
+  std::memcpy(b.data() + o, &v, sizeof(T));
+}
+
+struct Reader {
+  const Bytes& b;
+  std::size_t pos = 0;
+  template <class T>
+  T get() {
+    if (pos + sizeof(T) > b.size()) throw std::logic_error("hs::bonded: truncated MPI message");
+    T v;
+    std::memcpy(static_cast<void*>(&v), b.data() + pos, sizeof(T));
+    pos += sizeof(T);
+    return v;
+  }
+  bool done() const { return pos == b.size(); }
+};
+
+struct BondWire {
+  GlobalId gi, gj;
+  std::uint8_t kind;
+  BondRef ref;
+};
+struct PairHistWire {
+  GlobalId a, b;
+  Vec3 xi;
+};
+struct MeshHistWire {
+  std::uint32_t mesh;
+  GlobalId gid;
+  std::uint64_t feature;
+  Vec3 xi;
+};
+
+using SteadyClock = std::chrono::steady_clock;
+double seconds_since(SteadyClock::time_point t0) {
+  return std::chrono::duration<double>(SteadyClock::now() - t0).count();
+}
+
+}  // namespace
+
+std::int64_t Engine::global_particle_count() const {
+  const auto n = static_cast<std::int64_t>(ps_.owned());
+  return parallel() ? comm_->sum(n) : n;
+}
+
+std::int64_t Engine::global_bond_count() const {
+  const auto n = static_cast<std::int64_t>(bonds_.size());
+  return parallel() ? comm_->sum(n) : n;
+}
+
+void Engine::distribute(const par::Comm& comm, const ParallelDef& def) {
+  comm_ = &comm;
+  pdef_ = def;
+  if (!comm.parallel()) return;
+  const int me = comm.rank();
+  const std::size_t n = ps_.owned();
+  if (ps_.n_ghost != 0) throw std::logic_error("Engine::distribute: called twice");
+  // Every rank holds the same full system here, so local bounds are global.
+  Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
+  for (std::size_t i = 0; i < n; ++i) {
+    lo = lo.cwiseMin(ps_.x[i]);
+    hi = hi.cwiseMax(ps_.x[i]);
+  }
+  if (n == 0) lo = hi = Vec3::Zero();
+  std::array<int, 3> dims = def.grid;
+  if (dims[0] * dims[1] * dims[2] == 0) dims = par::Decomposition::choose_dims(comm.size(), hi - lo);
+  if (dims[0] * dims[1] * dims[2] != comm.size()) {
+    std::ostringstream s;
+    s << "the decomposition grid " << dims[0] << " x " << dims[1] << " x " << dims[2] << " has "
+      << dims[0] * dims[1] * dims[2] << " boxes but the run has " << comm.size()
+      << " MPI ranks; make the product equal the rank count, or leave the grid out to have it chosen";
+    throw InputError("/parallel/grid", s.str());
+  }
+  dom_ = par::Decomposition(dims);
+  dom_.set_uniform(lo, hi);
+  // Keep this rank's share: particles in its box, bonds whose lower-id particle it owns.
+  // The first exchange below balances the cuts by cost and moves particles accordingly.
+  pairs_.clear();
+  last_balance_step_ = step_;
+  max_bond_length_ = 0.0;
+  for (const Bond& b : bonds_) max_bond_length_ = std::max(max_bond_length_, (ps_.x[b.j] - ps_.x[b.i]).norm());
+  std::vector<char> keep(n, 0);
+  for (std::size_t i = 0; i < n; ++i) keep[i] = dom_.rank_of(ps_.x[i]) == me;
+  std::vector<Bond> mine;
+  for (const Bond& b : bonds_)
+    if (keep[b.i]) mine.push_back(b);
+  bonds_.swap(mine);
+  for (auto& h : wall_hist_) {
+    std::size_t w = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (keep[i]) h[w++] = h[i];
+    h.resize(w);
+  }
+  ps_.compact(keep);
+  for (Bond& b : bonds_) {  // owned end bound now (for the cost estimate), the other after the exchange
+    b.i = ps_.local(b.gi);
+    b.j = ps_.local(b.gj);
+  }
+  need_rebuild_ = true;
+  forces_valid_ = false;
+  x_at_build_.clear();
+  maybe_balance(true);  // the cost estimate needs bonds, which we now have
+  exchange_full();
+}
+
+std::vector<double> Engine::particle_work() const {
+  // Relative cost of a particle: its integration and fields (1), its listed contact pairs
+  // (1 each: distance test, and the contact law when touching) and its bonds (4 each: the bond
+  // law costs ~4x a contact, see the bonded benchmark profile). Pairs and bonds are charged to
+  // the particle whose rank computes them.
+  const std::size_t n = ps_.owned();
+  std::vector<double> w(n, 1.0);
+  for (const auto& p : pairs_)
+    if (p.i < n) w[p.i] += 1.0;
+  for (const auto& b : bonds_)
+    if (b.i < n) w[b.i] += 4.0;
+  for (const auto& m : meshes_) {  // mesh queries near the structure
+    const Vec3 lo = m.grid->bounds().lo + m.position, hi = m.grid->bounds().hi + m.position;
+    for (std::size_t i = 0; i < n; ++i)
+      if ((ps_.x[i].array() >= lo.array()).all() && (ps_.x[i].array() <= hi.array()).all()) w[i] += 2.0;
+  }
+  return w;
+}
+
+void Engine::maybe_balance(bool force) {
+  if (!parallel()) return;
+  if (!force && (pdef_.balance_interval == 0 || step_ - last_balance_step_ < pdef_.balance_interval)) return;
+  const std::size_t n = ps_.owned();
+  std::vector<double> w = particle_work();
+  if (pdef_.cost == ParallelDef::Cost::Time && !force) {
+    // Scale this rank's counted work so it sums to its measured time.
+    double wsum = 0.0;
+    for (double x : w) wsum += x;
+    const double scale = wsum > 0.0 ? force_seconds_since_balance_ / wsum : 0.0;
+    for (double& x : w) x *= scale;
+  }
+  double b[6] = {INFINITY, INFINITY, INFINITY, INFINITY, INFINITY, INFINITY};  // -lo, hi
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) {
+      b[a] = std::min(b[a], ps_.x[i][a]);
+      b[3 + a] = std::min(b[3 + a], -ps_.x[i][a]);
+    }
+  for (double& x : b) x = -x;
+  comm_->max(b, 6);  // b = {-min, max}
+  const Vec3 lo(-b[0], -b[1], -b[2]), hi(b[3], b[4], b[5]);
+  const int nb = std::max(16, pdef_.histogram_bins);
+  std::vector<double> h(3 * static_cast<std::size_t>(nb), 0.0);
+  for (std::size_t i = 0; i < n; ++i)
+    for (int a = 0; a < 3; ++a) {
+      const double span = hi[a] - lo[a];
+      const int k = span > 0.0 ? std::clamp(static_cast<int>((ps_.x[i][a] - lo[a]) / span * nb), 0, nb - 1) : 0;
+      h[a * nb + k] += w[i];
+    }
+  comm_->sum(h.data(), static_cast<int>(h.size()));
+  std::array<std::vector<double>, 3> hist;
+  for (int a = 0; a < 3; ++a) hist[a].assign(h.begin() + a * nb, h.begin() + (a + 1) * nb);
+  dom_.balance(hist, lo, hi);
+  last_balance_step_ = step_;
+  force_seconds_since_balance_ = 0.0;
+  ++pstats_.balances;
+}
+
+void Engine::exchange_full() {
+  const auto t0 = SteadyClock::now();
+  ++pstats_.exchanges;
+  // 1. Ghosts go; contact history leaves the pair list for global-id keys (oriented low -> high).
+  const std::size_t n = ps_.owned();
+  // Longest bond before the ghosts go (every bond's two ends are present now).
+  // (Right after distribute() the far ends are not bound yet: keep the length measured there.)
+  double lb = 0.0;
+  bool unbound = false;
+  for (const Bond& b : bonds_) {
+    if (b.i >= ps_.size() || b.j >= ps_.size()) {
+      unbound = true;
+      continue;
+    }
+    lb = std::max(lb, (ps_.x[b.j] - ps_.x[b.i]).norm());
+  }
+  max_bond_length_ = unbound ? std::max(lb, max_bond_length_) : lb;
+  ps_.truncate(n);
+  for (auto& h : wall_hist_) h.resize(n);
+  for (const auto& p : pairs_)
+    if (p.xi.squaredNorm() > 0.0 && p.i < n)
+      carried_history_.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]),
+                               ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+  // 2. Load balance (moves the cuts) while the pair counts still describe the work.
+  const std::uint64_t balances_before = pstats_.balances;
+  maybe_balance(false);
+  pairs_.clear();
+  // 3. Migration to the owners of the new positions.
+  const int me = comm_->rank();
+  std::vector<int> dest(n, -1);
+  bool far = pstats_.balances != balances_before;
+  for (std::size_t i = 0; i < n; ++i) {
+    const int r = dom_.rank_of(ps_.x[i]);
+    if (r == me) continue;
+    dest[i] = r;
+    if (!std::binary_search(peers_.begin(), peers_.end(), r)) far = true;
+  }
+  far = global_max(far ? 1.0 : 0.0) > 0.0;
+  migrate(dest, far);
+  // 4. New ghost lists (the halo covers contacts within the skin and every bond's partner).
+  make_ghosts();
+  refresh_bond_counts();
+  pstats_.comm_seconds += seconds_since(t0);
+}
+
+void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
+  const int me = comm_->rank(), np = comm_->size();
+  const std::size_t n = ps_.owned();
+  std::vector<Bytes> out(np);
+  std::vector<std::uint32_t> count(np, 0);
+  // Sections per destination: particles (+ wall histories), bonds, pair histories, mesh histories.
+  std::vector<Bytes> bonds_out(np), hist_out(np), mesh_out(np);
+  std::vector<std::uint32_t> nbonds(np, 0), nhist(np, 0), nmesh(np, 0);
+  std::unordered_map<GlobalId, int> leaving;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (dest[i] < 0) continue;
+    const int r = dest[i];
+    leaving.emplace(ps_.gid[i], r);
+    put(out[r], ps_.record(i));
+    for (const auto& h : wall_hist_) put(out[r], h[i]);
+    ++count[r];
+    ++pstats_.migrated;
+  }
+  if (global_max(leaving.empty() ? 0.0 : 1.0) == 0.0) return;  // nobody moves
+  std::vector<Bond> stay;
+  for (const Bond& b : bonds_) {
+    auto it = leaving.find(b.gi);
+    if (it == leaving.end()) {
+      stay.push_back(b);
+      continue;
+    }
+    put(bonds_out[it->second], BondWire{b.gi, b.gj, static_cast<std::uint8_t>(b.kind), b.ref});
+    ++nbonds[it->second];
+  }
+  bonds_.swap(stay);
+  for (auto it = carried_history_.begin(); it != carried_history_.end();) {
+    auto l = leaving.find(it->first.a);
+    if (l == leaving.end()) {
+      ++it;
+      continue;
+    }
+    put(hist_out[l->second], PairHistWire{it->first.a, it->first.b, it->second});
+    ++nhist[l->second];
+    it = carried_history_.erase(it);
+  }
+  for (std::uint32_t k = 0; k < meshes_.size(); ++k)
+    for (auto it = meshes_[k].history.begin(); it != meshes_[k].history.end();) {
+      auto l = leaving.find(it->first.gid);
+      if (l == leaving.end()) {
+        ++it;
+        continue;
+      }
+      put(mesh_out[l->second], MeshHistWire{k, it->first.gid, it->first.feature, it->second});
+      ++nmesh[l->second];
+      it = meshes_[k].history.erase(it);
+    }
+  // Assemble: [n particles][particles][n bonds][bonds][n hist][hist][n mesh][mesh]
+  std::vector<Bytes> msg(np);
+  for (int r = 0; r < np; ++r) {
+    if (r == me) continue;
+    Bytes& m = msg[r];
+    put(m, count[r]);
+    m.insert(m.end(), out[r].begin(), out[r].end());
+    put(m, nbonds[r]);
+    m.insert(m.end(), bonds_out[r].begin(), bonds_out[r].end());
+    put(m, nhist[r]);
+    m.insert(m.end(), hist_out[r].begin(), hist_out[r].end());
+    put(m, nmesh[r]);
+    m.insert(m.end(), mesh_out[r].begin(), mesh_out[r].end());
+  }
+  // Remove the leavers.
+  std::vector<char> keep(n);
+  for (std::size_t i = 0; i < n; ++i) keep[i] = dest[i] < 0;
+  for (auto& h : wall_hist_) {
+    std::size_t w = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (keep[i]) h[w++] = h[i];
+    h.resize(w);
+  }
+  ps_.compact(keep);
+  // Send, receive (only with peers unless the cuts moved or someone went far).
+  std::vector<Bytes> in;
+  std::vector<int> from;
+  if (any_rank) {
+    in = comm_->all_to_all(msg);
+    for (int r = 0; r < np; ++r) from.push_back(r);
+  } else {
+    std::vector<Bytes> send;
+    for (int p : peers_) send.push_back(std::move(msg[p]));
+    comm_->exchange(peers_, send, in);
+    from = peers_;
+  }
+  for (std::size_t k = 0; k < in.size(); ++k) {
+    if (from[k] == me || in[k].empty()) continue;
+    Reader rd{in[k]};
+    const auto np_in = rd.get<std::uint32_t>();
+    for (std::uint32_t q = 0; q < np_in; ++q) {
+      ps_.push(rd.get<ParticleRecord>());
+      for (auto& h : wall_hist_) h.push_back(rd.get<Vec3>());
+    }
+    ps_.n_owned = ps_.size();
+    const auto nb = rd.get<std::uint32_t>();
+    for (std::uint32_t q = 0; q < nb; ++q) {
+      const auto w = rd.get<BondWire>();
+      Bond b;
+      b.i = b.j = ParticleStore::kNone;  // bound to local indices after the ghost exchange
+      b.gi = w.gi;
+      b.gj = w.gj;
+      b.kind = static_cast<BondKind>(w.kind);
+      b.ref = w.ref;
+      bonds_.push_back(b);
+    }
+    const auto nh = rd.get<std::uint32_t>();
+    for (std::uint32_t q = 0; q < nh; ++q) {
+      const auto w = rd.get<PairHistWire>();
+      carried_history_[GidPair{w.a, w.b}] = w.xi;
+    }
+    const auto nm = rd.get<std::uint32_t>();
+    for (std::uint32_t q = 0; q < nm; ++q) {
+      const auto w = rd.get<MeshHistWire>();
+      meshes_.at(w.mesh).history[MeshWall::Key{w.gid, w.feature}] = w.xi;
+    }
+    if (!rd.done()) throw std::logic_error("hs::bonded: malformed migration message");
+  }
+}
+
+void Engine::make_ghosts() {
+  const int me = comm_->rank(), np = comm_->size();
+  const std::size_t n = ps_.owned();
+  // Halo: contacts within 2 r_max + skin, and the longest bond (with 5 % to spare) + skin.
+  double rmax = 0.0;
+  for (std::size_t i = 0; i < n; ++i) rmax = std::max(rmax, ps_.radius[i]);
+  double g[2] = {rmax, max_bond_length_};
+  comm_->max(g, 2);
+  // Particles move less than skin/2 between rebuilds, so every partner stays inside the halo
+  // until the next one (a missing partner is reported below, never silently dropped).
+  halo_ = std::max(2.0 * g[0], 1.05 * g[1]) + skin();
+  const par::Box mine = dom_.box(me);
+  peers_.clear();
+  for (int r = 0; r < np; ++r)
+    if (r != me && dom_.box(r).touches(mine, halo_)) peers_.push_back(r);
+  ghost_send_.assign(peers_.size(), {});
+  std::vector<Bytes> send(peers_.size()), recv;
+  for (std::size_t k = 0; k < peers_.size(); ++k) {
+    const par::Box b = dom_.box(peers_[k]);
+    for (std::size_t i = 0; i < n; ++i)
+      if (b.near(ps_.x[i], halo_)) {
+        ghost_send_[k].push_back(static_cast<std::uint32_t>(i));
+        put(send[k], ps_.record(i));
+      }
+  }
+  comm_->exchange(peers_, send, recv);
+  ghost_start_.assign(peers_.size(), 0);
+  ghost_n_.assign(peers_.size(), 0);
+  for (std::size_t k = 0; k < peers_.size(); ++k) {
+    ghost_start_[k] = static_cast<std::uint32_t>(ps_.size());
+    Reader rd{recv[k]};
+    while (!rd.done()) {
+      ps_.push(rd.get<ParticleRecord>());
+      ++ghost_n_[k];
+    }
+  }
+  ps_.n_ghost = ps_.size() - ps_.n_owned;
+  for (auto& h : wall_hist_) h.resize(ps_.size(), Vec3::Zero());
+  ps_.rebuild_index();
+  // Bind bonds to local indices; a partner missing from owned + ghosts would be a lost bond.
+  for (Bond& b : bonds_) {
+    b.i = ps_.local(b.gi);
+    b.j = ps_.local(b.gj);
+    if (b.i == ParticleStore::kNone || b.i >= ps_.n_owned || b.j == ParticleStore::kNone) {
+      std::ostringstream s;
+      s << "bond between particles " << b.gi << " and " << b.gj << " lost its partner at an MPI exchange "
+        << "(rank " << me << ", halo " << halo_ << " m); the bond is longer than the ghost halo";
+      throw SimulationError(s.str());
+    }
+  }
+}
+
+void Engine::refresh_bond_counts() {
+  if (!parallel()) return;
+  // Count every bond at both ends (ghost ends included), then send ghost counts home.
+  for (auto& c : ps_.bond_count) c = 0;
+  std::vector<std::uint32_t> cnt(ps_.size(), 0);
+  for (const Bond& b : bonds_) {
+    ++cnt[b.i];
+    ++cnt[b.j];
+  }
+  std::vector<Bytes> send(peers_.size()), recv;
+  for (std::size_t k = 0; k < peers_.size(); ++k)
+    for (std::uint32_t g = 0; g < ghost_n_[k]; ++g) put(send[k], cnt[ghost_start_[k] + g]);
+  comm_->exchange(peers_, send, recv);
+  for (std::size_t k = 0; k < peers_.size(); ++k) {
+    Reader rd{recv[k]};
+    for (std::uint32_t i : ghost_send_[k]) cnt[i] += rd.get<std::uint32_t>();
+  }
+  for (std::size_t i = 0; i < ps_.owned(); ++i) ps_.bond_count[i] = static_cast<std::uint8_t>(cnt[i]);
+}
+
+void Engine::forward_ghosts() {
+  const auto t0 = SteadyClock::now();
+  std::vector<Bytes> send(peers_.size()), recv;
+  for (std::size_t k = 0; k < peers_.size(); ++k) {
+    Bytes& b = send[k];
+    b.reserve(ghost_send_[k].size() * (3 * sizeof(Vec3) + sizeof(Quat)));
+    for (std::uint32_t i : ghost_send_[k]) {
+      put(b, ps_.x[i]);
+      put(b, ps_.v[i]);
+      put(b, ps_.omega[i]);
+      put(b, ps_.q[i]);
+    }
+  }
+  comm_->exchange(peers_, send, recv);
+  for (std::size_t k = 0; k < peers_.size(); ++k) {
+    Reader rd{recv[k]};
+    for (std::uint32_t g = ghost_start_[k], e = ghost_start_[k] + ghost_n_[k]; g < e; ++g) {
+      ps_.x[g] = rd.get<Vec3>();
+      ps_.v[g] = rd.get<Vec3>();
+      ps_.omega[g] = rd.get<Vec3>();
+      ps_.q[g] = rd.get<Quat>();
+    }
+  }
+  pstats_.comm_seconds += seconds_since(t0);
+}
+
+void Engine::reverse_ghost_forces() {
+  const auto t0 = SteadyClock::now();
+  std::vector<Bytes> send(peers_.size()), recv;
+  for (std::size_t k = 0; k < peers_.size(); ++k) {
+    Bytes& b = send[k];
+    b.reserve(ghost_n_[k] * 2 * sizeof(Vec3));
+    for (std::uint32_t g = ghost_start_[k], e = ghost_start_[k] + ghost_n_[k]; g < e; ++g) {
+      put(b, ps_.f[g]);
+      put(b, ps_.torque[g]);
+    }
+  }
+  comm_->exchange(peers_, send, recv);
+  for (std::size_t k = 0; k < peers_.size(); ++k) {  // ascending peer order: deterministic sums
+    Reader rd{recv[k]};
+    for (std::uint32_t i : ghost_send_[k]) {
+      ps_.f[i] += rd.get<Vec3>();
+      ps_.torque[i] += rd.get<Vec3>();
+    }
+  }
+  pstats_.comm_seconds += seconds_since(t0);
+}
+
+void Engine::reduce_loads() {
+  const auto t0 = SteadyClock::now();
+  std::vector<double> v;
+  for (const Vec3& f : wall_force_) v.insert(v.end(), f.data(), f.data() + 3);
+  for (const auto& m : meshes_) {
+    for (const Vec3& f : m.load.part_force) v.insert(v.end(), f.data(), f.data() + 3);
+    for (const Vec3& f : m.load.part_moment) v.insert(v.end(), f.data(), f.data() + 3);
+    v.push_back(static_cast<double>(m.load.contacts));
+  }
+  v.push_back(static_cast<double>(broken_now_[0]));
+  v.push_back(static_cast<double>(broken_now_[1]));
+  comm_->sum(v.data(), static_cast<int>(v.size()));
+  std::size_t k = 0;
+  auto take = [&](Vec3& f) {
+    f = Vec3(v[k], v[k + 1], v[k + 2]);
+    k += 3;
+  };
+  for (Vec3& f : wall_force_) take(f);
+  for (auto& m : meshes_) {
+    m.load.force.setZero();
+    m.load.moment.setZero();
+    for (Vec3& f : m.load.part_force) {
+      take(f);
+      m.load.force += f;
+    }
+    for (Vec3& f : m.load.part_moment) {
+      take(f);
+      m.load.moment += f;
+    }
+    m.load.contacts = static_cast<std::size_t>(v[k++]);
+  }
+  broken_now_[0] = static_cast<std::uint64_t>(v[k++]);
+  broken_now_[1] = static_cast<std::uint64_t>(v[k++]);
+  pstats_.comm_seconds += seconds_since(t0);
+}
+
+}  // namespace hs::bonded

@@ -1,0 +1,207 @@
+// The distributed engine against the serial one, inside one mpirun: every rank builds the same
+// system twice, runs one copy alone (par::serial()) and the other spread over all ranks, and
+// compares the particles it owns by global id. Run by ctest at 1, 2 and 3 ranks.
+#include "../bonded/fixtures.h"
+#include "bonded/contact_linear.h"
+#include "parallel/comm.h"
+
+#include <gtest/gtest.h>
+
+#include <cstdio>
+#include <functional>
+#include <random>
+
+namespace hs::bonded {
+namespace {
+
+const par::Comm* g_comm = nullptr;
+const par::Comm& world() { return *g_comm; }
+
+using Builder = std::function<void(Engine&)>;
+
+struct Pair {
+  std::unique_ptr<Engine> serial, dist;
+};
+
+Pair make_pair_of(const EngineDef& d, const Builder& build, const ParallelDef& pd = {}) {
+  Pair p{std::make_unique<Engine>(d), std::make_unique<Engine>(d)};
+  build(*p.serial);
+  build(*p.dist);
+  p.dist->distribute(world(), pd);
+  return p;
+}
+
+/// Largest |x_dist - x_serial| over all particles (all ranks).
+double max_position_difference(const Engine& dist, const Engine& serial) {
+  const auto& a = dist.particles();
+  const auto& b = serial.particles();
+  double m = 0.0;
+  for (std::size_t i = 0; i < a.owned(); ++i) {
+    const auto j = b.local(a.gid[i]);
+    if (j == ParticleStore::kNone) return INFINITY;
+    m = std::max(m, (a.x[i] - b.x[j]).cwiseAbs().maxCoeff());
+  }
+  return world().max(m);
+}
+
+EngineDef ice_def(double strength, double mu = 0.3) {
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  d.contact.mu = mu;
+  d.contact.zeta_n = d.contact.zeta_t = damping_ratio_from_restitution(0.3);
+  const double m = ice.cell_mass(), I = 0.4 * m * 0.25 * ice.D * ice.D;
+  d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), 0.5 * ice.D, strength, strength, 0.1, 0.5 * m,
+                                                 0.5 * I);
+  return d;
+}
+
+TEST(Parallel, BondedBarAcrossRankBoundaryMovesAsInSerial) {
+  // A 6 m HCP bar along x, centred on x = 0 (the 2-rank cut), vibrating in bending and twisting
+  // under gravity: every step has bonds across the rank boundary.
+  test::Ice ice;
+  EngineDef d = ice_def(INFINITY);
+  d.gravity = Vec3(0, 0, -9.81);
+  auto build = [&](Engine& e) {
+    for (const auto& c : hcp_fill_box(Vec3(3.0, 0.5, 0.41), Pose{}, ice.D)) {
+      auto p = test::sphere_at(ice, c, true);
+      p.v = Vec3(0.0, 0.05 * std::cos(c.x()), 0.2 * std::sin(kPi * c.x() / 6.0));
+      p.omega = Vec3(0.3 * c.x(), 0.0, 0.0);
+      e.add_particle(p);
+    }
+    e.bond_touching(0, e.particles().size(), BondKind::Lattice);
+  };
+  Pair p = make_pair_of(d, build);
+  const std::int64_t n0 = p.dist->global_particle_count(), b0 = p.dist->global_bond_count();
+  EXPECT_EQ(n0, static_cast<std::int64_t>(p.serial->particles().size()));
+  EXPECT_EQ(b0, static_cast<std::int64_t>(p.serial->bonds().size()));
+  double worst = 0.0;
+  for (int k = 0; k < 500; ++k) {
+    p.serial->step();
+    p.dist->step();
+    if (k % 50 == 49) worst = std::max(worst, max_position_difference(*p.dist, *p.serial));
+  }
+  worst = std::max(worst, max_position_difference(*p.dist, *p.serial));
+  if (world().rank() == 0)
+    std::printf("bar across ranks (%d ranks, %zu ghosts on rank 0): max |x - x_serial| = %.3e m over 500 steps\n",
+                world().size(), p.dist->ghost_count(), worst);
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_EQ(p.dist->global_bond_count(), b0);
+  EXPECT_EQ(p.dist->global_particle_count(), n0);
+  if (world().size() > 1) {
+    EXPECT_GT(world().sum(static_cast<std::int64_t>(p.dist->ghost_count())), 0);
+  }
+}
+
+TEST(Parallel, ImpactBreaksBondsAcrossRanksAsInSerialAndConservesMomentum) {
+  // A cloud of loose particles hits a weakly bonded block; no gravity, no walls: a closed system.
+  test::Ice ice;
+  EngineDef d = ice_def(2e5);
+  auto build = [&](Engine& e) {
+    const auto centres = hcp_fill_box(Vec3(1.5, 1.5, 0.8), Pose{}, ice.D);
+    for (const auto& c : centres) e.add_particle(test::sphere_at(ice, c, true));
+    e.bond_touching(0, e.particles().size(), BondKind::Lattice);
+    std::mt19937_64 rng(5);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (int k = 0; k < 12; ++k) {
+      auto p = test::sphere_at(ice, Vec3(-1.5 - ice.D - 0.03 - 0.6 * (k / 6), -1.5 + 0.6 * (k % 6), 0.1 * u(rng)));
+      p.v = Vec3(8.0, 0.05 * u(rng), 0.05 * u(rng));
+      p.omega = Vec3(u(rng), u(rng), u(rng));
+      e.add_particle(p);
+    }
+  };
+  Pair p = make_pair_of(d, build);
+  const Vec3 P0 = p.dist->linear_momentum(), L0 = p.dist->angular_momentum();
+  const double pscale = 12 * ice.sphere_mass() * 8.0;
+  const std::int64_t b0 = p.dist->global_bond_count();
+  double worst = 0.0;
+  for (int k = 0; k < 2000; ++k) {
+    p.serial->step();
+    p.dist->step();
+    if (k % 100 == 99) worst = std::max(worst, max_position_difference(*p.dist, *p.serial));
+  }
+  const Vec3 dP = p.dist->linear_momentum() - P0;
+  const Vec3 dL = p.dist->angular_momentum() - L0;
+  const auto broken = p.dist->stats().bonds_broken;
+  if (world().rank() == 0)
+    std::printf("impact (%d ranks): %llu bonds broken (serial %llu), max |x - x_serial| = %.3e m, |dP|/P = %.2e, "
+                "|dL| = %.2e, %llu particles migrated from rank 0, %llu exchanges\n",
+                world().size(), (unsigned long long)broken, (unsigned long long)p.serial->stats().bonds_broken,
+                worst, dP.norm() / pscale, dL.norm(), (unsigned long long)p.dist->parallel_stats().migrated,
+                (unsigned long long)p.dist->parallel_stats().exchanges);
+  EXPECT_GT(broken, 10u) << "the impact must break bonds";
+  EXPECT_EQ(broken, p.serial->stats().bonds_broken);
+  EXPECT_EQ(p.dist->global_bond_count(), b0 - static_cast<std::int64_t>(broken)) << "a bond was lost or doubled";
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_LT(dP.norm(), 1e-12 * pscale);
+  EXPECT_LT(dL.norm(), 1e-10 * pscale * 3.0);
+}
+
+TEST(Parallel, GranularFlowConservesParticlesThroughMigration) {
+  // Loose particles poured into a box with frictional walls slosh across every rank boundary;
+  // the ranks must hold every particle exactly once at all times.
+  test::Ice ice;
+  ice.E = 1e7;  // soft: 3000 steps cover 1.4 s of sloshing
+  EngineDef d = ice_def(INFINITY, 0.4);
+  d.youngs_modulus = ice.E;
+  d.contact.kn = d.contact.kt = ice.kn();
+  d.gravity = Vec3(0, 0, -9.81);
+  auto build = [&](Engine& e) {
+    std::mt19937_64 rng(17);
+    std::uniform_real_distribution<double> u(-1.0, 1.0);
+    for (const auto& c : hcp_fill_box(Vec3(2.0, 1.0, 1.0), Pose{Vec3(-1.0, 0, 0.2), Quat::Identity()}, 0.55)) {
+      auto p = test::sphere_at(ice, c);
+      p.v = Vec3(3.0 + 0.5 * u(rng), 0.5 * u(rng), 0.5 * u(rng));
+      e.add_particle(p);
+    }
+    e.add_wall(PlaneWall{"floor", Vec3(0, 0, -1.0), Vec3::UnitZ(), Vec3::Zero(), 0.4});
+    e.add_wall(PlaneWall{"left", Vec3(-3.5, 0, 0), Vec3::UnitX(), Vec3::Zero(), 0.4});
+    e.add_wall(PlaneWall{"right", Vec3(3.5, 0, 0), -Vec3::UnitX(), Vec3::Zero(), 0.4});
+    e.add_wall(PlaneWall{"front", Vec3(0, -1.5, 0), Vec3::UnitY(), Vec3::Zero(), 0.4});
+    e.add_wall(PlaneWall{"back", Vec3(0, 1.5, 0), -Vec3::UnitY(), Vec3::Zero(), 0.4});
+  };
+  ParallelDef pd;
+  pd.balance_interval = 200;  // cuts move while particles cross them
+  Pair p = make_pair_of(d, build, pd);
+  const std::int64_t n0 = p.dist->global_particle_count();
+  std::int64_t id_sum0 = 0;
+  for (std::size_t i = 0; i < p.serial->particles().size(); ++i) id_sum0 += p.serial->particles().gid[i];
+  bool ok = true;
+  for (int k = 0; k < 3000; ++k) {
+    p.dist->step();
+    if (k % 100 == 99) {
+      std::int64_t ids = 0;
+      for (std::size_t i = 0; i < p.dist->particles().owned(); ++i) ids += p.dist->particles().gid[i];
+      ok = ok && p.dist->global_particle_count() == n0 && world().sum(ids) == id_sum0;
+    }
+  }
+  const std::int64_t migrated = world().sum(static_cast<std::int64_t>(p.dist->parallel_stats().migrated));
+  if (world().rank() == 0)
+    std::printf("granular (%d ranks): %lld particles, %lld migrations, %llu balances, wall force sum %.4g N\n",
+                world().size(), (long long)n0, (long long)migrated,
+                (unsigned long long)p.dist->parallel_stats().balances, p.dist->wall_force(0).z());
+  EXPECT_TRUE(ok) << "a particle was lost or duplicated";
+  if (world().size() > 1) {
+    EXPECT_GT(migrated, 50) << "the test must move particles between ranks";
+  }
+  // Wall loads are summed over ranks: every rank sees the same total.
+  const double fz = p.dist->wall_force(0).z();
+  EXPECT_EQ(world().max(fz), -world().max(-fz));
+}
+
+}  // namespace
+}  // namespace hs::bonded
+
+int main(int argc, char** argv) {
+  hs::par::Session session(&argc, &argv);
+  hs::bonded::g_comm = &session.world();
+  ::testing::InitGoogleTest(&argc, argv);
+  // Only rank 0 prints gtest's report (every rank still runs and checks every assertion).
+  if (session.world().rank() != 0) {
+    auto& listeners = ::testing::UnitTest::GetInstance()->listeners();
+    delete listeners.Release(listeners.default_result_printer());
+  }
+  const int rc = RUN_ALL_TESTS();
+  // A failure on any rank fails the run.
+  const std::int64_t bad = session.world().sum(static_cast<std::int64_t>(rc != 0));
+  return bad ? 1 : 0;
+}
