@@ -8,7 +8,9 @@
 //             between all lattice neighbours and the contact law between unbonded
 //             pairs, on a floor, pushed at its edge by a 52-degree sloped indenter
 //             moving at 0.4 m/s so that bonds bend and break; 4000 steps timed.
-// Output: one JSON object on one line.
+// Output: one JSON object on one line. Under mpirun the same system is spread over the ranks
+// (strong scaling): particle_steps_per_s counts all particles; the figures of the parallel
+// machinery (load imbalance, share of time in communication) come with it.
 #include "app/bench.h"
 
 #include "bonded/engine.h"
@@ -75,27 +77,46 @@ Timing timed_run(Engine& e, std::uint64_t steps) {
   return {std::chrono::duration<double>(Clock::now() - t0).count(), steps};
 }
 
-nlohmann::json result(const std::string& name, const Engine& e, const Timing& t, double setup_s) {
+Timing timed_run(Engine& e, std::uint64_t steps, ParallelStats& before) {
+  e.comm().barrier();
+  before = e.parallel_stats();
+  return timed_run(e, steps);
+}
+
+nlohmann::json result(const std::string& name, const Engine& e, const Timing& t, double setup_s,
+                      const ParallelStats& before) {
+  const par::Comm& c = e.comm();
+  const double n = static_cast<double>(e.global_particle_count());
+  const double wall = c.max(t.wall_s);
   nlohmann::json j;
   j["name"] = name;
-  j["particles"] = e.particles().owned();
+  j["particles"] = static_cast<std::int64_t>(n);
   j["steps"] = t.steps;
-  j["wall_s"] = t.wall_s;
-  j["particle_steps_per_s"] = static_cast<double>(e.particles().owned()) * t.steps / t.wall_s;
-  j["peak_rss_mb"] = peak_rss_mb();
+  j["wall_s"] = wall;
+  j["particle_steps_per_s"] = n * t.steps / wall;
+  j["peak_rss_mb"] = c.max(peak_rss_mb());  // per rank, the largest
   j["dt_s"] = e.dt();
   j["setup_s"] = setup_s;
-  j["bonds"] = e.bonds().size();
-  j["contact_pairs"] = e.contact_pairs().size();
+  j["bonds"] = e.global_bond_count();
+  j["contact_pairs"] = c.sum(static_cast<std::int64_t>(e.contact_pairs().size()));
   j["neighbor_rebuilds"] = e.stats().neighbor_rebuilds;
   j["threads"] = 1;
-  j["ranks"] = 1;
+  j["ranks"] = c.size();
+  if (c.parallel()) {
+    const double force = e.parallel_stats().force_seconds - before.force_seconds;
+    const double comm = e.parallel_stats().comm_seconds - before.comm_seconds;
+    j["load_imbalance"] = c.max(force) / (c.sum(force) / c.size());  // max / mean force time
+    j["comm_fraction"] = c.max(comm) / wall;
+    j["ghosts"] = c.sum(static_cast<std::int64_t>(e.ghost_count()));
+    const auto& g = e.decomposition().dims();
+    j["grid"] = {g[0], g[1], g[2]};
+  }
   j["cpu"] = cpu_model();
   j["version"] = HYBRIDSIM_VERSION;
   return j;
 }
 
-nlohmann::json granular() {
+nlohmann::json granular(const par::Comm& comm) {
   const auto t0 = Clock::now();
   const int nx = 45, ny = 45, nz = 15;  // 30,375
   // Settling (not timed) uses frictionless, strongly damped contacts so that the
@@ -119,28 +140,32 @@ nlohmann::json granular() {
   e.add_wall({"y0", Vec3(0, 0, 0), Vec3::UnitY(), Vec3::Zero(), 0.3});
   e.add_wall({"y1", Vec3(0, L, 0), -Vec3::UnitY(), Vec3::Zero(), 0.3});
   e.check_time_step();
+  e.distribute(comm);
   // Settle until the mean speed is below 1 cm/s (or 20,000 steps).
   for (int block = 0; block < 100; ++block) {
     e.run(200);
     double v2 = 0;
     for (std::size_t i = 0; i < e.particles().owned(); ++i) v2 += e.particles().v[i].squaredNorm();
-    if (std::sqrt(v2 / e.particles().owned()) < 0.01) break;
+    if (std::sqrt(comm.sum(v2) / static_cast<double>(e.global_particle_count())) < 0.01) break;
   }
   e.mutable_def().contact.zeta_n = e.mutable_def().contact.zeta_t = damping_ratio_from_restitution(0.3);
   e.mutable_def().contact.mu = 0.3;
   e.run(1000);  // let friction take hold (not timed)
   e.check_time_step();
   const double setup = std::chrono::duration<double>(Clock::now() - t0).count();
-  const Timing t = timed_run(e, 2000);
-  auto j = result("granular", e, t, setup);
+  ParallelStats before;
+  const Timing t = timed_run(e, 2000, before);
+  auto j = result("granular", e, t, setup, before);
   double zmax = 0;
   for (std::size_t i = 0; i < e.particles().owned(); ++i) zmax = std::max(zmax, e.particles().x[i].z());
+  zmax = comm.max(zmax);
   j["pack_height_m"] = zmax + 0.5 * kD;
-  j["solid_fraction"] = e.particles().owned() * kPi * kD * kD * kD / 6.0 / (L * L * (zmax + 0.5 * kD));
+  j["solid_fraction"] =
+      static_cast<double>(e.global_particle_count()) * kPi * kD * kD * kD / 6.0 / (L * L * (zmax + 0.5 * kD));
   return j;
 }
 
-nlohmann::json bonded() {
+nlohmann::json bonded(const par::Comm& comm) {
   const auto t0 = Clock::now();
   EngineDef d = ice_def(0.3, 0.3);
   const double m = kRho * hcp_cell_volume(kD);
@@ -168,10 +193,12 @@ nlohmann::json bonded() {
   const Vec3 n(-std::sin(slope), 0.0, -std::cos(slope));
   e.add_wall({"indenter", Vec3(xmax + 0.5 * kD, 0, 2.0 * half.z()), n, Vec3(-0.4, 0, 0), 0.1});
   e.check_time_step();
-  const double setup = std::chrono::duration<double>(Clock::now() - t0).count();
   const std::size_t bonds0 = e.bonds().size();
-  const Timing t = timed_run(e, 4000);
-  auto j = result("bonded", e, t, setup);
+  e.distribute(comm);
+  const double setup = std::chrono::duration<double>(Clock::now() - t0).count();
+  ParallelStats before;
+  const Timing t = timed_run(e, 4000, before);
+  auto j = result("bonded", e, t, setup, before);
   j["bonds_initial"] = bonds0;
   j["bonds_broken"] = e.stats().bonds_broken;
   j["indenter_force_N"] = {e.wall_force(1).x(), e.wall_force(1).y(), e.wall_force(1).z()};
@@ -182,10 +209,10 @@ nlohmann::json bonded() {
 
 std::vector<std::string> benchmark_names() { return {"granular", "bonded"}; }
 
-int run_benchmark(const std::string& name, std::ostream& out, std::ostream& err) {
+int run_benchmark(const std::string& name, std::ostream& out, std::ostream& err, const par::Comm& comm) {
   nlohmann::json j;
-  if (name == "granular") j = granular();
-  else if (name == "bonded") j = bonded();
+  if (name == "granular") j = granular(comm);
+  else if (name == "bonded") j = bonded(comm);
   else {
     err << "error: unknown benchmark '" << name << "'; available: granular, bonded\n";
     return 2;

@@ -1,6 +1,8 @@
 // Built-in benchmarks: `hybridsim bench NAME` prints one JSON object.
 #pragma once
 
+#include "parallel/comm.h"
+
 #include <ostream>
 #include <string>
 #include <vector>
@@ -12,6 +14,7 @@ std::vector<std::string> benchmark_names();
 
 /// Runs benchmark `name`, prints its JSON result (one object, one line) to `out`.
 /// Returns the process exit code (0 ok, 2 unknown name).
-int run_benchmark(const std::string& name, std::ostream& out, std::ostream& err);
+int run_benchmark(const std::string& name, std::ostream& out, std::ostream& err,
+                  const par::Comm& comm = par::serial());
 
 }  // namespace hs::app

@@ -5,17 +5,22 @@
 //   hybridsim bench NAME                                      built-in benchmark (JSON line)
 //   hybridsim ridge scene.json [-o ridge.h5]                  build a ridge of rigid blocks
 //   hybridsim --version
+//   mpirun -np N hybridsim scene.json ...                     the same run on N ranks (one output file)
 // Exit codes: 0 ok, 1 internal error, 2 bad input (hs::InputError), 3 simulation unstable
 // (hs::SimulationError; the output written so far is kept).
+// Under mpirun every rank runs the command; rank 0 alone prints (a rank with an error of its own
+// prints it too). MPI is initialised only when an MPI launcher started the process.
 #include "app/bench.h"
 #include "app/ridge_command.h"
 #include "app/run.h"
 #include "common/error.h"
+#include "parallel/comm.h"
 
 #include <CLI/CLI.hpp>
 
 #include <cstdio>
 #include <iostream>
+#include <string_view>
 
 namespace {
 
@@ -28,6 +33,14 @@ int report_input_error(const hs::InputError& e) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  hs::par::Session session(&argc, &argv);
+  const hs::par::Comm& world = session.world();
+  const bool root = world.rank() == 0;
+  // Ranks other than 0 stay quiet: their summaries and progress lines go nowhere.
+  std::ostream null_out(nullptr);
+  std::FILE* progress = root ? stderr : std::fopen("/dev/null", "w");
+  std::ostream& out = root ? std::cout : null_out;
+
   CLI::App app{"hybridsim " HYBRIDSIM_VERSION
                " - bonded-particle DEM of sea ice against structures.\n"
                "Usage: hybridsim SCENE.json [-o OUT.h5] [--set path=value]...  (same as `hybridsim run`)",
@@ -36,6 +49,7 @@ int main(int argc, char** argv) {
   app.require_subcommand(0, 1);
 
   hs::app::RunOptions opt;
+  opt.comm = &world;
   std::string bench_name;
   auto add_common = [&](CLI::App* a, bool with_output) {
     a->add_option("scene", opt.scene_path, "scene file (JSON, see docs/scene.md)");
@@ -65,27 +79,35 @@ int main(int argc, char** argv) {
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    const int rc = app.exit(e);
+    const int rc = root ? app.exit(e) : (e.get_exit_code() == 0 ? 0 : 2);
     return rc == 0 ? 0 : 2;
   }
 
   try {
-    if (*bench) return hs::app::run_benchmark(bench_name, std::cout, std::cerr);
+    if (*bench) return hs::app::run_benchmark(bench_name, out, std::cerr, world);
     if (*ridge) return hs::app::ridge_command(ridge_scene, ridge_out, std::cout);
     if (opt.scene_path.empty()) {
       std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
       return 2;
     }
-    if (*iso) return hs::app::iso_command(opt, std::cout);
-    if (*check) return hs::app::check_scene(opt, std::cout, std::cerr);
-    return hs::app::run_scene(opt, std::cout, stderr);
+    if (*iso) return hs::app::iso_command(opt, out);
+    if (*check) return hs::app::check_scene(opt, out, std::cerr);
+    return hs::app::run_scene(opt, out, progress);
   } catch (const hs::InputError& e) {
-    return report_input_error(e);
+    // Every rank reads the same scene, so every rank fails the same way: one message.
+    return root ? report_input_error(e) : 2;
   } catch (const hs::SimulationError& e) {
-    std::fprintf(stderr, "error: simulation unstable: %s\n", e.what());
+    // Instability is agreed by all ranks (collective check); the rank that saw it names it.
+    const bool other = std::string_view(e.what()).find("on another rank") != std::string_view::npos;
+    if (root || !other)
+      std::fprintf(stderr, "error: simulation unstable%s: %s\n",
+                   world.parallel() ? (" (rank " + std::to_string(world.rank()) + ")").c_str() : "", e.what());
     return 3;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
+    std::fprintf(stderr, "error%s: %s\n",
+                 world.parallel() ? (" (rank " + std::to_string(world.rank()) + ")").c_str() : "", e.what());
+    // An internal error may have hit one rank only; the others would wait for it forever.
+    if (world.parallel()) session.abort(1);
     return 1;
   }
 }

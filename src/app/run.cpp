@@ -5,6 +5,7 @@
 #include "bonded/engine.h"
 #include "common/error.h"
 #include "io/run_file.h"
+#include "parallel/comm.h"
 #include "scene/scene.h"
 
 #include <hdf5.h>
@@ -12,12 +13,14 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cstring>
 #include <cmath>
 #include <cstdint>
 #include <iomanip>
 #include <numeric>
 #include <sstream>
 #include <stdexcept>
+#include <unordered_map>
 
 namespace hs::app {
 
@@ -75,9 +78,38 @@ struct Pieces {
   std::vector<double> extent;      ///< m, max horizontal extent of each piece (same order)
 };
 
-Pieces find_pieces(const bonded::Engine& e) {
+/// Gathers every rank's owned particles and bonds on rank 0 (collective) and finds the pieces
+/// there; other ranks get an empty result. Particles are taken in global-id order, so the result
+/// does not depend on the rank count.
+Pieces find_pieces(const bonded::Engine& e, const par::Comm& comm) {
+  struct Rec {
+    GlobalId gid;
+    double x, y, r;
+  };
+  struct BondRec {
+    GlobalId a, b;
+  };
   const auto& p = e.particles();
-  const std::size_t n = p.owned();
+  par::Bytes mine(p.owned() * sizeof(Rec)), mine_b(e.bonds().size() * sizeof(BondRec));
+  for (std::size_t i = 0; i < p.owned(); ++i) {
+    const Rec r{p.gid[i], p.x[i].x(), p.x[i].y(), p.radius[i]};
+    std::memcpy(mine.data() + i * sizeof(Rec), &r, sizeof(Rec));
+  }
+  for (std::size_t k = 0; k < e.bonds().size(); ++k) {
+    const BondRec r{e.bonds()[k].gi, e.bonds()[k].gj};
+    std::memcpy(mine_b.data() + k * sizeof(BondRec), &r, sizeof(BondRec));
+  }
+  const par::Bytes all = comm.gather(mine), all_b = comm.gather(mine_b);
+  if (comm.rank() != 0) return {};
+  std::vector<Rec> recs(all.size() / sizeof(Rec));
+  if (!recs.empty()) std::memcpy(static_cast<void*>(recs.data()), all.data(), all.size());
+  std::vector<BondRec> bonds(all_b.size() / sizeof(BondRec));
+  if (!bonds.empty()) std::memcpy(static_cast<void*>(bonds.data()), all_b.data(), all_b.size());
+  std::sort(recs.begin(), recs.end(), [](const Rec& a, const Rec& b) { return a.gid < b.gid; });
+  std::unordered_map<GlobalId, std::uint32_t> index;
+  index.reserve(recs.size() * 2);
+  for (std::size_t i = 0; i < recs.size(); ++i) index.emplace(recs[i].gid, static_cast<std::uint32_t>(i));
+  const std::size_t n = recs.size();
   std::vector<std::uint32_t> parent(n);
   std::iota(parent.begin(), parent.end(), 0u);
   auto find = [&](std::uint32_t a) {
@@ -87,9 +119,10 @@ Pieces find_pieces(const bonded::Engine& e) {
     }
     return a;
   };
-  for (const auto& b : e.bonds()) {
-    if (b.i >= n || b.j >= n) continue;
-    const std::uint32_t a = find(b.i), c = find(b.j);
+  for (const auto& b : bonds) {
+    const auto ia = index.find(b.a), ib = index.find(b.b);
+    if (ia == index.end() || ib == index.end()) continue;
+    const std::uint32_t a = find(ia->second), c = find(ib->second);
     if (a != c) parent[std::max(a, c)] = std::min(a, c);
   }
   struct Acc {
@@ -105,13 +138,12 @@ Pieces find_pieces(const bonded::Engine& e) {
       acc.emplace_back();
     }
     Acc& a = acc[slot[r]];
-    const Vec3& x = p.x[i];
-    const double rad = p.radius[i];
+    const Rec& q = recs[i];
     ++a.count;
-    a.x0 = std::min(a.x0, x.x() - rad);
-    a.x1 = std::max(a.x1, x.x() + rad);
-    a.y0 = std::min(a.y0, x.y() - rad);
-    a.y1 = std::max(a.y1, x.y() + rad);
+    a.x0 = std::min(a.x0, q.x - q.r);
+    a.x1 = std::max(a.x1, q.x + q.r);
+    a.y0 = std::min(a.y0, q.y - q.r);
+    a.y1 = std::max(a.y1, q.y + q.r);
   }
   std::stable_sort(acc.begin(), acc.end(), [](const Acc& a, const Acc& b) { return a.count > b.count; });
   Pieces out;
@@ -258,17 +290,26 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
 }
 
 int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
+  const par::Comm& comm = opt.comm ? *opt.comm : par::serial();
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   print_warnings(s, progress);
   const auto t_setup = Clock::now();
   scene::Built b = scene::build_engine(s, true);
   bonded::Engine& e = *b.engine;
+  if (comm.parallel()) {  // every rank built the whole scene; each keeps its share
+    bonded::ParallelDef pd;
+    pd.grid = s.parallel.grid;
+    pd.balance_interval = s.parallel.balance_interval;
+    pd.cost = s.parallel.cost == "time" ? bonded::ParallelDef::Cost::Time : bonded::ParallelDef::Cost::Work;
+    e.distribute(comm, pd);
+  }
   const Schedule sc = schedule(s, e.dt());
   const std::size_t nwalls = s.walls.size();
 
   io::RunFileMeta meta;
   meta.scene_text = s.json.dump(2);
   meta.program_version = HYBRIDSIM_VERSION;
+  meta.comm = &comm;
   const std::string out_path = opt.output.empty() ? s.output : opt.output;
   io::RunFile file(out_path, meta);
 
@@ -377,7 +418,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       }
       probe.axis_point = e.mesh_wall_position(b.structure);
       const auto& ps = e.particles();
-      const double ph = analysis::pile_height(probe, ps.x.data(), ps.radius.data(), ps.owned());
+      const double ph = comm.max(analysis::pile_height(probe, ps.x.data(), ps.radius.data(), ps.owned()));
       file.append(id_pile, &ph);
       file.append(id_pos, probe.axis_point.data());
       if (ph > max_pile) {
@@ -399,8 +440,8 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
                         E.total()};
     for (std::size_t k = 0; k < std::size(en); ++k) file.append(en[k].id, &v[k]);
     const std::int64_t broken = static_cast<std::int64_t>(e.stats().bonds_broken);
-    const std::int64_t nb = static_cast<std::int64_t>(e.bonds().size());
-    const std::int64_t np = static_cast<std::int64_t>(e.particles().owned());
+    const std::int64_t nb = e.global_bond_count();
+    const std::int64_t np = e.global_particle_count();
     file.append(id_broken, &broken);
     file.append(id_bonds, &nb);
     file.append(id_particles, &np);
@@ -409,16 +450,19 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   std::vector<std::int32_t> ibuf;
   std::vector<std::int64_t> lbuf;
   auto write_snapshot = [&]() {
+    e.refresh_bond_counts();  // bonds may have broken on the neighbouring rank
     const auto& p = e.particles();
     const std::size_t n = p.owned();
+    // This rank's rows: after the lower ranks' particles.
+    const io::FieldSlice sl{comm.exscan(n), static_cast<std::uint64_t>(e.global_particle_count())};
     file.begin_snapshot(e.time(), e.step_count());
-    file.write_field("position", p.x.data()->data(), n, 3, "m");
-    file.write_field("velocity", p.v.data()->data(), n, 3, "m/s");
-    file.write_field("radius", p.radius.data(), n, 1, "m");
+    file.write_field("position", p.x.data()->data(), n, 3, "m", sl);
+    file.write_field("velocity", p.v.data()->data(), n, 3, "m/s", sl);
+    file.write_field("radius", p.radius.data(), n, 1, "m", sl);
     ibuf.assign(p.bond_count.begin(), p.bond_count.begin() + n);
-    file.write_field("bond_count", ibuf.data(), n, 1, "1");
+    file.write_field("bond_count", ibuf.data(), n, 1, "1", sl);
     lbuf.assign(p.gid.begin(), p.gid.begin() + n);
-    file.write_field("global_id", lbuf.data(), n, 1, "1");
+    file.write_field("global_id", lbuf.data(), n, 1, "1", sl);
     file.end_snapshot();
   };
 
@@ -429,6 +473,12 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
                "(setup %.1f s)\n",
                s.name.c_str(), b.particles, b.bonds, nwalls, e.dt(), static_cast<unsigned long long>(sc.total_steps),
                s.time.duration, setup_s);
+  if (comm.parallel()) {
+    const auto& g = e.decomposition().dims();
+    std::fprintf(progress, "hybridsim: %d MPI ranks, boxes %d x %d x %d, load balance every %llu steps by %s\n",
+                 comm.size(), g[0], g[1], g[2], static_cast<unsigned long long>(s.parallel.balance_interval),
+                 s.parallel.cost.c_str());
+  }
   std::fflush(progress);
 
   const auto t0 = Clock::now();
@@ -503,7 +553,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     }
   } catch (const SimulationError&) {
     if (progress_line_open) std::fprintf(progress, "\n");
-    file.close();  // keep what was written so far
+    file.close();  // keep what was written so far (collective: every rank saw the same error)
     std::fprintf(progress, "hybridsim: output up to t = %g s kept in %s\n", e.time(), out_path.c_str());
     throw;
   }
@@ -514,7 +564,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
 
   // ---- end-of-run analysis: broken pieces, ISO 19906 next to the DEM ----
   AnalysisOut an;
-  an.pieces = find_pieces(e);
+  an.pieces = find_pieces(e, comm);
   an.dem_peak = st_peak_h;
   an.max_pile = max_pile;
   const double h_iso = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
@@ -530,7 +580,13 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
     }
   }
-  write_analysis(out_path, an);
+  if (comm.rank() == 0) write_analysis(out_path, an);  // the file is closed; rank 0 adds /analysis
+  // Parallel figures: the slowest rank sets the pace; comm time is exchanges + reductions.
+  double pf[3] = {e.parallel_stats().force_seconds, e.parallel_stats().comm_seconds, 0.0};
+  const double force_time_sum = comm.sum(pf[0]);
+  comm.max(pf, 2);
+  const std::int64_t migrated = comm.sum(static_cast<std::int64_t>(e.parallel_stats().migrated));
+  comm.barrier();
 
   const auto& st = e.stats();
   out << "hybridsim: " << s.name << " finished: " << e.step_count() << " steps to t = " << sci(e.time(), 6)
@@ -574,6 +630,11 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   } else if (!iso_note.empty()) {
     out << "  " << iso_note << "\n";
   }
+  if (comm.parallel())
+    out << "  MPI: " << comm.size() << " ranks; force time max/mean " << sci(pf[0] / std::max(force_time_sum / comm.size(), 1e-12), 3)
+        << " (load imbalance), max comm time " << sci(pf[1], 3) << " s (" << sci(100.0 * pf[1] / std::max(wall, 1e-9), 3)
+        << " % of wall), " << e.parallel_stats().exchanges << " exchanges, " << migrated << " migrations, "
+        << e.parallel_stats().balances << " load balances\n";
   out << "  output: " << out_path << " (" << rows << " series rows, " << snaps << " snapshots)\n";
   return 0;
 }

@@ -6,9 +6,15 @@
 #include <string>
 #include <vector>
 
+namespace hs::par {
+class Comm;
+}
+
 namespace hs::app {
 
 struct RunOptions {
+  /// The ranks of an mpirun launch (every rank calls run_scene); nullptr = serial.
+  const par::Comm* comm = nullptr;
   std::string scene_path;
   std::string output;                  ///< -o; empty: the scene's "output" ("<name>.h5")
   std::vector<std::string> overrides;  ///< --set path=value, in order
@@ -17,7 +23,8 @@ struct RunOptions {
 /// Assumed throughput for run-time estimates (one core, Release).
 inline constexpr double kParticleStepsPerSecond = 3e6;
 
-/// Loads, builds and runs the scene, writing the HDF5 run file. Progress goes to `progress`
+/// Loads, builds and runs the scene, writing the HDF5 run file. Under MPI every rank calls this
+/// (collective); each builds the scene, keeps its share, and all write the one file. Progress goes to `progress`
 /// (a single updating line when it is a terminal, a log line every ~10 s otherwise), the
 /// summary to `out`. Returns 0; throws hs::InputError (bad input, nothing run) and
 /// hs::SimulationError (unstable; the output written so far is flushed and closed first).

@@ -16,6 +16,9 @@
 #include <vector>
 
 #include "common/error.h"
+#include "parallel/comm.h"
+
+#include <mpi.h>
 
 namespace hs::io {
 namespace {
@@ -277,14 +280,18 @@ struct RunFile::Impl {
   }
 
   /// Appends `add` rows of `width` values to an extendible dataset holding `old_rows` rows.
+  /// Under MPI every rank extends the dataset (collective) and rank 0 alone writes the rows
+  /// (all ranks hold the same series rows).
   void append_rows(hid_t dset, const std::string& object, std::uint64_t old_rows, std::uint64_t add,
                    int width, Elem type, const void* data) const {
     if (add == 0) return;
     const int rank = width == 1 ? 1 : 2;
     const hsize_t new_dims[2] = {old_rows + add, static_cast<hsize_t>(width)};
     check(H5Dset_extent(dset, new_dims), "H5Dset_extent", object);
-    write_rows(dset, object, old_rows, add, rank, width, type, data);
+    if (series_writer()) write_rows(dset, object, old_rows, add, rank, width, type, data);
   }
+  bool parallel() const { return meta.comm != nullptr && meta.comm->parallel(); }
+  bool series_writer() const { return !parallel() || meta.comm->rank() == 0; }
 
   /// Writes rows [offset, offset + n) of an existing dataset.
   void write_rows(hid_t dset, const std::string& object, std::uint64_t offset, std::uint64_t n,
@@ -324,7 +331,7 @@ struct RunFile::Impl {
     if (!file.valid()) throw std::logic_error("hs::io::RunFile::flush: file '" + path + "' is closed");
     flush_series();
     check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "H5Fflush", "/");
-    if (meta.fsync_on_flush) {
+    if (meta.fsync_on_flush && !parallel()) {  // (MPI-IO: the driver's handle is not a descriptor)
       void* handle = nullptr;
       check(H5Fget_vfd_handle(file.get(), H5P_DEFAULT, &handle), "H5Fget_vfd_handle", "/");
       if (handle != nullptr && ::fsync(*static_cast<int*>(handle)) != 0)
@@ -332,7 +339,7 @@ struct RunFile::Impl {
     }
     // After H5Fflush, so the index never names data that is not in the file yet.
     if (xdmf_dirty && meta.write_xdmf) {
-      write_xdmf_atomic(xdmf_path);
+      if (series_writer()) write_xdmf_atomic(xdmf_path);
       xdmf_dirty = false;
     }
   }
@@ -519,6 +526,9 @@ RunFile::RunFile(const std::string& path, RunFileMeta meta) : impl_(std::make_un
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
 
   Handle fapl(m.check_id(H5Pcreate(H5P_FILE_ACCESS), "H5Pcreate", "/"), H5Pclose);
+  if (m.parallel())  // one file for all ranks, through MPI-IO
+    m.check(H5Pset_fapl_mpio(fapl.get(), reinterpret_cast<MPI_Comm>(m.meta.comm->native()), MPI_INFO_NULL),
+            "H5Pset_fapl_mpio", "/");
   // 1.8 format: readable everywhere, dense attribute storage, no v3 superblock status flags.
   m.check(H5Pset_libver_bounds(fapl.get(), H5F_LIBVER_V18, H5F_LIBVER_V18), "H5Pset_libver_bounds",
           "/");
@@ -537,7 +547,9 @@ RunFile::RunFile(const std::string& path, RunFileMeta meta) : impl_(std::make_un
     const hid_t root = m.file.get();
     m.write_string_attr(root, "scene", m.meta.scene_text, "/");
     m.write_string_attr(root, "program_version", m.meta.program_version, "/");
-    m.write_string_attr(root, "created", iso_time_utc_now(), "/");
+    // Attribute values must agree on every rank: rank 0's clock.
+    const std::string created = m.parallel() ? m.meta.comm->broadcast(iso_time_utc_now()) : iso_time_utc_now();
+    m.write_string_attr(root, "created", created, "/");
     m.write_string_attr(root, "file_format", "hybridsim-run/1", "/");
     m.flush();
   } catch (...) {
@@ -709,8 +721,9 @@ void RunFile::end_snapshot() {
   m.require_open("end_snapshot");
   if (!m.in_snapshot) throw std::logic_error("hs::io::RunFile::end_snapshot: no snapshot begun");
   // Serial: this process owns every row, so the slices must add up to the whole field.
-  // (MPI version: the sum over ranks does.)
+  // (Under MPI the sum over ranks does; the caller's offsets come from a prefix sum.)
   for (const auto& f : m.pending) {
+    if (m.parallel()) break;
     std::uint64_t rows = 0;
     for (const auto& s : f.slices) rows += s.n;
     if (rows != f.global_count)

@@ -37,12 +37,14 @@
 //   (H5Pset_fapl_mpio) needs MPI_Init: without it Open MPI aborts the process ("MPI_Comm_dup() was
 //   called before MPI_INIT"). If MPI is initialized, close the RunFile before MPI_Finalize (HDF5
 //   shuts itself down at MPI_Finalize).
-//   Parallel plan (one file, MPI-IO): every rank constructs the RunFile with the communicator and
-//   calls add_series/flush/begin_snapshot/write_field/end_snapshot in the same order (HDF5 metadata
-//   operations are collective; they already all happen inside flush()). Series rows come from rank 0
-//   (other ranks select nothing); each rank writes its particles as the rows
-//   [global_offset, global_offset + n) of a field of global_count rows (MPI_Exscan of owned counts).
-//   In this serial version the slices of a field must cover all global_count rows.
+//   Parallel (RunFileMeta::comm with more than one rank): one file through MPI-IO. Every rank
+//   constructs the RunFile with the communicator and calls add_series/append/flush/begin_snapshot/
+//   write_field/end_snapshot in the same order (HDF5 metadata operations are collective; they all
+//   happen inside flush()). Series rows: every rank appends the same rows, rank 0 alone writes
+//   them. Snapshots: each rank writes its particles as the rows [global_offset, global_offset + n)
+//   of a field of global_count rows (MPI_Exscan of owned counts), with independent raw-data I/O.
+//   The XDMF index is written by rank 0; fsync_on_flush is ignored (H5Fflush syncs through MPI-IO).
+//   The layout is the same as a serial run's; particle rows come in rank order (use global_id).
 //
 // Not thread-safe (Debian's HDF5 is not built thread-safe). HDF5's automatic error printing is turned
 // off for the calling thread; HDF5 failures become std::runtime_error naming the call and object.
@@ -52,6 +54,10 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+
+namespace hs::par {
+class Comm;
+}
 
 namespace hs::io {
 
@@ -65,6 +71,10 @@ struct RunFileMeta {
   bool write_xdmf = true;
   /// fsync(2) after each flush: survive power loss / kernel crash, not only a killed process.
   bool fsync_on_flush = false;
+  /// MPI: every rank of this communicator opens the one file (MPI-IO) and makes the same calls
+  /// in the same order; series rows come from rank 0, snapshot rows from each rank's slice.
+  /// nullptr or a one-rank comm: the plain serial file.
+  const par::Comm* comm = nullptr;
   /// Buffered series data above this many bytes triggers a flush on append.
   std::size_t max_buffered_bytes = std::size_t{64} << 20;
 };

@@ -24,7 +24,7 @@ namespace {
 const std::map<std::string, std::vector<std::string>>& schema_keys() {
   static const std::map<std::string, std::vector<std::string>> k = {
       {"", {"name", "description", "output", "time", "material", "bonds", "water", "gravity", "ice", "walls",
-            "structure", "analysis", "stability"}},
+            "structure", "analysis", "stability", "parallel"}},
       {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval"}},
       {"/material",
        {"density", "youngs_modulus", "poisson_ratio", "particle_diameter", "restitution", "friction",
@@ -44,6 +44,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
        {"flexural_strength", "rubble_porosity", "rubble_slope_deg", "rubble_friction_angle_deg", "rubble_cohesion",
         "friction_ice_ice", "keel_depth", "rubble_height"}},
       {"/stability", {"max_speed", "max_overlap_ratio"}},
+      {"/parallel", {"grid", "balance_interval", "cost"}},
   };
   return k;
 }
@@ -585,6 +586,28 @@ Scene parse_scene(const json& j, const std::string& base_dir) {
     s.stability.max_overlap_ratio = o.number("max_overlap_ratio", s.stability.max_overlap_ratio,
                                              {0.0, 2.0, true, false}, "",
                                              "overlap / radius above which the run stops, e.g. 0.5");
+  }
+
+  // parallel
+  if (root.has("parallel")) {
+    const Obj o(root.raw("parallel"), "/parallel");
+    auto& p = s.parallel;
+    if (o.has("grid")) {
+      const Eigen::Vector3d g = o.vec<3>("grid", Eigen::Vector3d::Zero(), "",
+                                         "boxes along x, y and z whose product is the MPI rank count, e.g. [4, 1, 1]");
+      const bool auto_grid = g == Eigen::Vector3d::Zero();
+      for (int a = 0; a < 3; ++a) {
+        if (g[a] != std::floor(g[a]) || (!auto_grid && g[a] < 1) || g[a] > 65536)
+          throw InputError("/parallel/grid/" + std::to_string(a),
+                           "expected a whole number >= 1, got " + fmt(g[a]) +
+                               "; give boxes per axis whose product is the rank count, or [0, 0, 0] to choose");
+        p.grid[a] = static_cast<int>(g[a]);
+      }
+    }
+    p.balance_interval = static_cast<std::uint64_t>(
+        o.number("balance_interval", static_cast<double>(p.balance_interval), Range::non_negative(), "steps",
+                 "steps between load-balance checks, e.g. 500, or 0 to keep the first cuts"));
+    p.cost = o.choice("cost", p.cost, {"work", "time"});
   }
   return s;
 }

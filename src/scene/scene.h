@@ -115,6 +115,13 @@ struct StabilityDef {
   double max_overlap_ratio = 0.5;  ///< overlap / radius
 };
 
+/// How a run under mpirun spreads over the ranks (ignored by a serial run); docs/parallel.md.
+struct ParallelSceneDef {
+  std::array<int, 3> grid{0, 0, 0};      ///< boxes along x, y, z; all 0 = chosen from the rank count
+  std::uint64_t balance_interval = 500;  ///< steps between load-balance checks; 0 = never
+  std::string cost = "work";             ///< "work" (deterministic) or "time" (measured)
+};
+
 struct Scene {
   std::string name;
   std::string description;
@@ -131,6 +138,7 @@ struct Scene {
   StructureDef structure;
   AnalysisDef analysis;
   StabilityDef stability;
+  ParallelSceneDef parallel;
 
   nlohmann::json json;             ///< the effective scene (after --set overrides)
   std::vector<std::string> warnings;  ///< "path: message", for the user; not errors

@@ -281,7 +281,9 @@ TEST(CliStructure, TinyPierRunWritesLoadsPileIsoAndPieces) {
   double total = 0;
   for (std::size_t k = 0; k < size.size(); ++k) {
     total += size[k];
-    if (k) EXPECT_LE(size[k], size[k - 1]);
+    if (k) {
+      EXPECT_LE(size[k], size[k - 1]);
+    }
     EXPECT_GE(ext[k], 0.25 - 1e-9);
   }
   EXPECT_EQ(total, read_doubles(h5, "/series/particles").back());
