@@ -17,6 +17,7 @@ class SerialComm final : public Comm {
   void sum(double*, int) const override {}
   void sum(std::int64_t*, int) const override {}
   void max(double*, int) const override {}
+  void sum_same_everywhere(double*, int) const override {}
   std::uint64_t exscan(std::uint64_t) const override { return 0; }
   std::string broadcast(const std::string& s, int) const override { return s; }
   void barrier() const override {}
@@ -49,6 +50,13 @@ class MpiComm final : public Comm {
   }
   void max(double* v, int n) const override {
     check(MPI_Allreduce(MPI_IN_PLACE, v, n, MPI_DOUBLE, MPI_MAX, c_), "MPI_Allreduce");
+  }
+  void sum_same_everywhere(double* v, int n) const override {
+    if (rank_ == 0)
+      check(MPI_Reduce(MPI_IN_PLACE, v, n, MPI_DOUBLE, MPI_SUM, 0, c_), "MPI_Reduce");
+    else
+      check(MPI_Reduce(v, nullptr, n, MPI_DOUBLE, MPI_SUM, 0, c_), "MPI_Reduce");
+    check(MPI_Bcast(v, n, MPI_DOUBLE, 0, c_), "MPI_Bcast");
   }
   std::uint64_t exscan(std::uint64_t v) const override {
     std::uint64_t out = 0;

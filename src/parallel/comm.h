@@ -28,6 +28,9 @@ class Comm {
   virtual void sum(double* v, int n) const = 0;
   virtual void sum(std::int64_t* v, int n) const = 0;
   virtual void max(double* v, int n) const = 0;
+  /// Sum reduced on rank 0 and broadcast: bit-identical on every rank by construction (for
+  /// state that replicated copies must agree on exactly, e.g. impulses on rigid blocks).
+  virtual void sum_same_everywhere(double* v, int n) const = 0;
   double sum(double v) const { sum(&v, 1); return v; }
   std::int64_t sum(std::int64_t v) const { sum(&v, 1); return v; }
   double max(double v) const { max(&v, 1); return v; }

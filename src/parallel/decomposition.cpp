@@ -25,7 +25,7 @@ std::array<int, 3> Decomposition::choose_dims(int n, const Vec3& extent) {
   std::array<int, 3> best{n, 1, 1};
   double best_cost = kInf;
   const Vec3 e = extent.cwiseMax(Vec3::Constant(1e-9));
-  for (int px = 1; px <= n; ++px) {
+  for (int px = n; px >= 1; --px) {  // descending: ties go to more cuts across x
     if (n % px) continue;
     for (int py = 1; py <= n / px; ++py) {
       if ((n / px) % py) continue;

@@ -191,6 +191,10 @@ TEST(Parallel, GranularFlowConservesParticlesThroughMigration) {
 }  // namespace
 }  // namespace hs::bonded
 
+namespace hs {
+const par::Comm& test_world() { return *bonded::g_comm; }
+}  // namespace hs
+
 int main(int argc, char** argv) {
   hs::par::Session session(&argc, &argv);
   hs::bonded::g_comm = &session.world();
