@@ -433,27 +433,35 @@ void Engine::refresh_bond_counts() {
   for (std::size_t i = 0; i < ps_.owned(); ++i) ps_.bond_count[i] = static_cast<std::uint8_t>(cnt[i]);
 }
 
+// Ghost updates: fixed-size records in persistent buffers, one round of messages each way.
 void Engine::forward_ghosts() {
   const auto t0 = SteadyClock::now();
-  std::vector<Bytes> send(peers_.size()), recv;
-  for (std::size_t k = 0; k < peers_.size(); ++k) {
-    Bytes& b = send[k];
-    b.reserve(ghost_send_[k].size() * (3 * sizeof(Vec3) + sizeof(Quat)));
+  constexpr std::size_t rec = 3 * sizeof(Vec3) + sizeof(Quat);
+  const std::size_t np = peers_.size();
+  fwd_send_.resize(np);
+  fwd_recv_.resize(np);
+  for (std::size_t k = 0; k < np; ++k) {
+    par::Bytes& b = fwd_send_[k];
+    b.resize(ghost_send_[k].size() * rec);
+    char* o = b.data();
     for (std::uint32_t i : ghost_send_[k]) {
-      put(b, ps_.x[i]);
-      put(b, ps_.v[i]);
-      put(b, ps_.omega[i]);
-      put(b, ps_.q[i]);
+      std::memcpy(o, ps_.x[i].data(), sizeof(Vec3));
+      std::memcpy(o + sizeof(Vec3), ps_.v[i].data(), sizeof(Vec3));
+      std::memcpy(o + 2 * sizeof(Vec3), ps_.omega[i].data(), sizeof(Vec3));
+      std::memcpy(o + 3 * sizeof(Vec3), ps_.q[i].coeffs().data(), sizeof(Quat));
+      o += rec;
     }
+    fwd_recv_[k].resize(ghost_n_[k] * rec);
   }
-  comm_->exchange(peers_, send, recv);
-  for (std::size_t k = 0; k < peers_.size(); ++k) {
-    Reader rd{recv[k]};
+  comm_->exchange_sized(peers_, fwd_send_, fwd_recv_);
+  for (std::size_t k = 0; k < np; ++k) {
+    const char* o = fwd_recv_[k].data();
     for (std::uint32_t g = ghost_start_[k], e = ghost_start_[k] + ghost_n_[k]; g < e; ++g) {
-      ps_.x[g] = rd.get<Vec3>();
-      ps_.v[g] = rd.get<Vec3>();
-      ps_.omega[g] = rd.get<Vec3>();
-      ps_.q[g] = rd.get<Quat>();
+      std::memcpy(ps_.x[g].data(), o, sizeof(Vec3));
+      std::memcpy(ps_.v[g].data(), o + sizeof(Vec3), sizeof(Vec3));
+      std::memcpy(ps_.omega[g].data(), o + 2 * sizeof(Vec3), sizeof(Vec3));
+      std::memcpy(ps_.q[g].coeffs().data(), o + 3 * sizeof(Vec3), sizeof(Quat));
+      o += rec;
     }
   }
   pstats_.comm_seconds += seconds_since(t0);
@@ -461,21 +469,31 @@ void Engine::forward_ghosts() {
 
 void Engine::reverse_ghost_forces() {
   const auto t0 = SteadyClock::now();
-  std::vector<Bytes> send(peers_.size()), recv;
-  for (std::size_t k = 0; k < peers_.size(); ++k) {
-    Bytes& b = send[k];
-    b.reserve(ghost_n_[k] * 2 * sizeof(Vec3));
+  constexpr std::size_t rec = 2 * sizeof(Vec3);
+  const std::size_t np = peers_.size();
+  rev_send_.resize(np);
+  rev_recv_.resize(np);
+  for (std::size_t k = 0; k < np; ++k) {
+    par::Bytes& b = rev_send_[k];
+    b.resize(ghost_n_[k] * rec);
+    char* o = b.data();
     for (std::uint32_t g = ghost_start_[k], e = ghost_start_[k] + ghost_n_[k]; g < e; ++g) {
-      put(b, ps_.f[g]);
-      put(b, ps_.torque[g]);
+      std::memcpy(o, ps_.f[g].data(), sizeof(Vec3));
+      std::memcpy(o + sizeof(Vec3), ps_.torque[g].data(), sizeof(Vec3));
+      o += rec;
     }
+    rev_recv_[k].resize(ghost_send_[k].size() * rec);
   }
-  comm_->exchange(peers_, send, recv);
-  for (std::size_t k = 0; k < peers_.size(); ++k) {  // ascending peer order: deterministic sums
-    Reader rd{recv[k]};
+  comm_->exchange_sized(peers_, rev_send_, rev_recv_);
+  for (std::size_t k = 0; k < np; ++k) {  // ascending peer order: deterministic sums
+    const char* o = rev_recv_[k].data();
     for (std::uint32_t i : ghost_send_[k]) {
-      ps_.f[i] += rd.get<Vec3>();
-      ps_.torque[i] += rd.get<Vec3>();
+      Vec3 f, t;
+      std::memcpy(f.data(), o, sizeof(Vec3));
+      std::memcpy(t.data(), o + sizeof(Vec3), sizeof(Vec3));
+      ps_.f[i] += f;
+      ps_.torque[i] += t;
+      o += rec;
     }
   }
   pstats_.comm_seconds += seconds_since(t0);

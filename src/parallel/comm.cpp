@@ -25,6 +25,9 @@ class SerialComm final : public Comm {
     if (!peers.empty()) throw std::logic_error("hs::par::serial: no peers in a serial run");
     recv.clear();
   }
+  void exchange_sized(const std::vector<int>& peers, const std::vector<Bytes>&, std::vector<Bytes>&) const override {
+    if (!peers.empty()) throw std::logic_error("hs::par::serial: no peers in a serial run");
+  }
   std::vector<Bytes> all_to_all(const std::vector<Bytes>& send) const override { return send; }
   Bytes gather(const Bytes& mine, int) const override { return mine; }
   std::intptr_t native() const override { return 0; }
@@ -93,6 +96,18 @@ class MpiComm final : public Comm {
     check(MPI_Waitall(nreq, req.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
   }
 
+  void exchange_sized(const std::vector<int>& peers, const std::vector<Bytes>& send,
+                      std::vector<Bytes>& recv) const override {
+    req_.clear();
+    int nreq = 0;
+    req_.resize(4 * peers.size() + 4);
+    for (std::size_t k = 0; k < peers.size(); ++k) {
+      if (!recv[k].empty()) post(recv[k].data(), recv[k].size(), peers[k], true, req_, nreq);
+      if (!send[k].empty()) post(const_cast<char*>(send[k].data()), send[k].size(), peers[k], false, req_, nreq);
+    }
+    check(MPI_Waitall(nreq, req_.data(), MPI_STATUSES_IGNORE), "MPI_Waitall");
+  }
+
   std::vector<Bytes> all_to_all(const std::vector<Bytes>& send) const override {
     std::vector<int> peers;
     std::vector<Bytes> s, r;
@@ -145,6 +160,7 @@ class MpiComm final : public Comm {
 
   MPI_Comm c_;
   int rank_ = 0, size_ = 1;
+  mutable std::vector<MPI_Request> req_;
 };
 
 }  // namespace

@@ -43,6 +43,10 @@ class Comm {
   /// peers[k], recv[k] comes from peers[k]. Message sizes need not be known in advance.
   virtual void exchange(const std::vector<int>& peers, const std::vector<Bytes>& send,
                         std::vector<Bytes>& recv) const = 0;
+  /// The same with sizes known on both sides (ghost updates): recv[k] must already have the size
+  /// peers[k] sends. One round of messages instead of two.
+  virtual void exchange_sized(const std::vector<int>& peers, const std::vector<Bytes>& send,
+                              std::vector<Bytes>& recv) const = 0;
   /// All-to-all: send[r] goes to rank r; returns what every rank sent to this one (index = source).
   virtual std::vector<Bytes> all_to_all(const std::vector<Bytes>& send) const = 0;
   /// Concatenation of every rank's bytes, on rank `root` only (others get {}).
