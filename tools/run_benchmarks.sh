@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Runs the built-in benchmarks and keeps their figures per machine.
 #   tools/run_benchmarks.sh [NAME ...]        (default: granular bonded)
+#   RANKS=2 tools/run_benchmarks.sh           the same under mpirun -np 2 (strong scaling;
+#                                             the CSV name column becomes e.g. granular@2)
 # Prints each benchmark's JSON line and appends a CSV row to bench/results-<host>.csv.
 # Run on a quiet machine: the figures are single-core wall-clock rates.
 set -euo pipefail
@@ -14,12 +16,17 @@ csv="bench/results-$(hostname).csv"
 [ -f "$csv" ] || echo "date,commit,name,particles,steps,wall_s,particle_steps_per_s,peak_rss_mb,cpu" > "$csv"
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
 for n in "${names[@]}"; do
-  line=$("$exe" bench "$n")
+  if [ "${RANKS:-1}" -gt 1 ]; then
+    line=$(OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --bind-to none -np "$RANKS" "$exe" bench "$n")
+  else
+    line=$("$exe" bench "$n")
+  fi
   echo "$line"
   /usr/bin/python3 - "$line" "$commit" >> "$csv" <<'PY'
 import json, sys, datetime
 j = json.loads(sys.argv[1])
-print(",".join(str(x) for x in [datetime.date.today(), sys.argv[2], j["name"], j["particles"], j["steps"],
+name = j["name"] + (f"@{j['ranks']}" if j.get("ranks", 1) > 1 else "")
+print(",".join(str(x) for x in [datetime.date.today(), sys.argv[2], name, j["particles"], j["steps"],
       round(j["wall_s"], 3), round(j["particle_steps_per_s"]), round(j["peak_rss_mb"], 1), '"' + j["cpu"] + '"']))
 PY
 done

@@ -635,6 +635,17 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
         << " (load imbalance), max comm time " << sci(pf[1], 3) << " s (" << sci(100.0 * pf[1] / std::max(wall, 1e-9), 3)
         << " % of wall), " << e.parallel_stats().exchanges << " exchanges, " << migrated << " migrations, "
         << e.parallel_stats().balances << " load balances\n";
+  if (comm.parallel()) {  // where the load balance put the cuts (they follow the busy region)
+    const char* axis = "xyz";
+    for (int a = 0; a < 3; ++a) {
+      const auto& c = e.decomposition().cuts(a);
+      if (c.size() <= 2) continue;
+      out << "  cuts across " << axis[a] << " at";
+      for (std::size_t k = 1; k + 1 < c.size(); ++k) out << " " << sci(c[k], 4);
+      out << " m (structure at " << axis[a] << " = " << (has_st ? sci(e.mesh_wall_position(b.structure)[a], 4) : "-")
+          << " m)\n";
+    }
+  }
   out << "  output: " << out_path << " (" << rows << " series rows, " << snaps << " snapshots)\n";
   return 0;
 }
