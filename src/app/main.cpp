@@ -85,7 +85,8 @@ int main(int argc, char** argv) {
 
   try {
     if (*bench) return hs::app::run_benchmark(bench_name, out, std::cerr, world);
-    if (*ridge) return hs::app::ridge_command(ridge_scene, ridge_out, std::cout);
+    // Ridge building is serial (a replicated rigid world gains nothing from more ranks): rank 0.
+    if (*ridge) return root ? hs::app::ridge_command(ridge_scene, ridge_out, std::cout) : 0;
     if (opt.scene_path.empty()) {
       std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
       return 2;
