@@ -303,6 +303,19 @@ void RigidWorld::set_pose(BlockId id, const Vec3& x, const Quat& q) {
   impl_->world->updateSingleAabb(s.body.get());
 }
 
+void RigidWorld::set_friction(BlockId id, double mu) {
+  if (!(mu >= 0.0)) throw InputError("rigid/friction", "must be >= 0");
+  // Bullet recomputes the combined friction of a manifold point whenever the contact is
+  // refreshed (every step for box-box pairs), so the change reaches existing contacts.
+  impl_->block(id).body->setFriction(std::sqrt(mu));
+}
+
+void RigidWorld::set_solver_iterations(int n) {
+  if (n < 1) throw InputError("rigid/solver_iterations", "must be >= 1");
+  impl_->def.solver_iterations = n;
+  impl_->world->getSolverInfo().m_numIterations = n;
+}
+
 void RigidWorld::add_force(BlockId id, const Vec3& f, const Vec3& point) {
   BlockSlot& s = impl_->block(id);
   const Vec3 c = from_bt(s.body->getWorldTransform().getOrigin());

@@ -134,6 +134,11 @@ class RigidWorld {
   bool fixed(BlockId id) const;
   void set_velocity(BlockId id, const Vec3& v, const Vec3& w);
   void set_pose(BlockId id, const Vec3& x, const Quat& q);
+  /// Coulomb coefficient of a block (fixed ones too); two blocks meet with the product
+  /// of their square roots, as in add_block. Takes effect from the next sub-step.
+  void set_friction(BlockId id, double mu);
+  /// Sequential-impulse iterations from the next sub-step on (>= 1).
+  void set_solver_iterations(int n);
 
   /// External force (N) at a world point, applied during every following sub-step
   /// until clear_external_forces(); for loads held over a rigid step.

@@ -1,4 +1,5 @@
-// RigidWorld in water: freeboard, undamped heave period, self-righting; handles.
+// RigidWorld in water: freeboard, undamped heave period, self-righting; handles;
+// friction changed at run time.
 #include "rigid/rigid_world.h"
 
 #include <gtest/gtest.h>
@@ -116,6 +117,44 @@ TEST(RigidWorld, ImpulseChangesMomentum) {
   w.substep();
   EXPECT_NEAR(w.velocity(id).x(), 100.0 / m, 1e-12);
   EXPECT_NEAR(w.kinetic_energy(), 0.5 * m * std::pow(100.0 / m, 2), 1e-9);
+}
+
+// Sliding distance of a block launched at v0 on a fixed floor, out of water:
+// Coulomb friction decelerates it at mu g, so it stops after v0^2 / (2 mu g).
+double slide_distance(double mu_def, double mu_set) {
+  RigidWorldDef def;
+  def.water = false;
+  def.dt = 1.0 / 120.0;
+  def.friction = mu_def;
+  RigidWorld w(def);
+  BlockDef floor;
+  floor.half_extents = Vec3(20.0, 2.0, 0.5);
+  floor.position = Vec3(0, 0, -0.5);
+  floor.fixed = true;
+  const BlockId f = w.add_block(floor);
+  BlockDef b;
+  b.half_extents = Vec3(0.5, 0.5, 0.1);
+  b.position = Vec3(-10.0, 0, 0.1);
+  const BlockId id = w.add_block(b);
+  w.step(0.5);  // come to rest on the floor
+  if (mu_set >= 0.0) {
+    w.set_friction(f, mu_set);
+    w.set_friction(id, mu_set);
+  }
+  const double x0 = w.position(id).x();
+  w.set_velocity(id, Vec3(2.0, 0, 0), Vec3::Zero());
+  w.step(3.0);
+  EXPECT_LT(w.velocity(id).norm(), 1e-3);
+  return w.position(id).x() - x0;
+}
+
+TEST(RigidWorld, SetFrictionChangesSliding) {
+  const double v0 = 2.0;
+  const double d05 = slide_distance(0.5, -1.0), d02 = slide_distance(0.5, 0.2);
+  std::printf("[ rigid ] slide %.4f m (mu 0.5, theory %.4f), %.4f m (set to 0.2, theory %.4f)\n", d05,
+              v0 * v0 / (2 * 0.5 * kG), d02, v0 * v0 / (2 * 0.2 * kG));
+  EXPECT_NEAR(d05 / (v0 * v0 / (2 * 0.5 * kG)), 1.0, 0.05);
+  EXPECT_NEAR(d02 / (v0 * v0 / (2 * 0.2 * kG)), 1.0, 0.05);
 }
 
 }  // namespace
