@@ -6,7 +6,9 @@ Usage: tools/plot_ridge.py ridge.h5 [-o PREFIX] [--slab Y0 Y1]
 Writes PREFIX_side.png (x-z: blocks within the y slab drawn as their rotated outlines,
 i.e. the cross-section of each box's projection; level ice and consolidated layer; target
 and achieved keel/sail profiles) and PREFIX_top.png (x-y: keel blocks shaded by depth,
-sail blocks outlined). PREFIX defaults to the file name without extension.
+sail blocks outlined) and PREFIX_tilt.png (histogram of the keel blocks' inclination:
+angle between a block's thickness axis and the vertical, 0 = lying flat, 90 = on edge;
+the median is printed). PREFIX defaults to the file name without extension.
 """
 import argparse
 import json
@@ -143,7 +145,18 @@ def main():
     fig.tight_layout()
     fig.savefig(prefix + "_top.png", dpi=110)
     plt.close(fig)
-    print(prefix + "_side.png", prefix + "_top.png")
+    # ---- keel block inclination
+    tilt = np.array([np.degrees(np.arccos(min(1.0, abs(rotmat(quat[i])[2, 2])))) for i in keel])
+    fig, ax = plt.subplots(figsize=(6, 4))
+    ax.hist(tilt, bins=np.arange(0, 91, 5), color="#bdbdbd", edgecolor="k")
+    ax.set_xlabel("keel block inclination [deg] (0: flat, 90: on edge)")
+    ax.set_ylabel("blocks")
+    ax.set_title("median %.0f deg, %.0f %% above 60 deg" % (np.median(tilt), 100.0 * np.mean(tilt > 60.0)))
+    fig.tight_layout()
+    fig.savefig(prefix + "_tilt.png", dpi=110)
+    plt.close(fig)
+    print(prefix + "_side.png", prefix + "_top.png", prefix + "_tilt.png",
+          "keel inclination median %.1f deg, >60 deg: %.1f %%" % (np.median(tilt), 100.0 * np.mean(tilt > 60.0)))
 
 
 if __name__ == "__main__":

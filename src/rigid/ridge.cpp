@@ -421,6 +421,8 @@ void validate(const RidgeDef& d, const std::string& P) {
       "block_width_fraction", "must be [min, max] with 0 < min <= max <= 1");
   req(d.max_tilt_deg >= 0.0 && d.max_tilt_deg <= 90.0, "max_tilt_deg", "must be in [0, 90] degrees");
   req(d.fill_porosity >= 0.0 && d.fill_porosity < 0.9, "fill_porosity", "must be in [0, 0.9)");
+  req(d.placement_candidates >= 1 && d.placement_candidates <= 1000, "placement_candidates",
+      "must be in [1, 1000]");
   const RidgeSettleDef& s = d.settle;
   req(s.dt > 0.0 && s.dt <= 0.1, "settle/dt", "must be in (0, 0.1] s");
   req(s.linear_drag * s.dt / (d.ice_density * d.block_thickness) < 1.0, "settle/dt",
@@ -430,6 +432,11 @@ void validate(const RidgeDef& d, const std::string& P) {
   req(s.min_time >= 0.0, "settle/min_time", "must be >= 0 (s)");
   req(s.max_time >= s.min_time, "settle/max_time", "must be >= min_time (s)");
   req(s.friction >= 0.0, "settle/friction", "must be >= 0");
+  req(s.compaction_friction >= 0.0, "settle/compaction_friction", "must be >= 0");
+  req(s.compaction_time >= 0.0 && s.compaction_time <= s.max_time, "settle/compaction_time",
+      "must be in [0, max_time] (s; 0: no compaction phase)");
+  req(s.damping >= 0.0, "settle/damping", "must be >= 0 (1/s)");
+  req(s.compaction_solver_iterations >= 1, "settle/compaction_solver_iterations", "must be >= 1");
   req(s.linear_drag >= 0.0, "settle/linear_drag", "must be >= 0 (Pa s/m)");
   req(s.quadratic_drag_cd >= 0.0, "settle/quadratic_drag_cd", "must be >= 0");
   req(s.speed_cap_factor > 0.0 && s.speed_cap_factor <= 0.5, "settle/speed_cap_factor",
@@ -513,60 +520,114 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
     return xs[i - 1] + t * (xs[i] - xs[i - 1]);
   };
 
-  // ---- placement: loose, non-overlapping piles hanging under / standing on the ice.
+  // ---- placement: non-overlapping piles hanging under / standing on the ice, packed by
+  // greedy deposition (docs/ridge.md, Method 3): every block tries placement_candidates
+  // poses, each translated along z from the ice to the first free position (exact: the
+  // z range where two boxes overlap is an interval, found with the 15 SAT axes), and keeps
+  // the one that ends least deep relative to the local target depth. Holes are filled
+  // before the pile grows, so the column starts denser (porosity ~0.6 instead of ~0.8)
+  // and shaped like the target, and the rise is short.
   std::vector<Placed> placed;
   HashGrid grid(2.0);
   std::vector<std::int32_t> cand;
-  const double dz = std::min(0.1, 0.25 * h_blk);
-  auto overlaps = [&](const Placed& p) {
+  const double zreach = 3.0 * std::max(d.keel_depth, d.sail_height) + 20.0 * h_blk;  // search depth, m
+  // Highest (keel: t <= 0, moving down) / lowest (sail: t >= 0, moving up) shift t of p
+  // along z with no overlap (boxes inflated by gap/2 each).
+  std::vector<std::pair<double, double>> ivals;
+  auto free_shift = [&](const Placed& p, bool keel) {
     const Vec3 hp = p.h + Vec3::Constant(0.5 * gap);
-    grid.query(p.x - p.aabb - Vec3::Constant(gap), p.x + p.aabb + Vec3::Constant(gap), cand);
+    Vec3 lo = p.x - p.aabb - Vec3::Constant(gap), hi = p.x + p.aabb + Vec3::Constant(gap);
+    if (keel) lo.z() -= zreach;
+    else hi.z() += zreach;
+    grid.query(lo, hi, cand);
+    ivals.clear();
     for (std::int32_t id : cand) {
       const Placed& o = placed[id];
-      if (((p.x - o.x).cwiseAbs() - p.aabb - o.aabb).maxCoeff() > gap) continue;
-      if (sat(hp, p.x, p.R, o.h + Vec3::Constant(0.5 * gap), o.x, o.R, nullptr) > 0.0) return true;
+      const Vec3 dd = o.x - p.x;
+      if (std::abs(dd.x()) > p.aabb.x() + o.aabb.x() + gap || std::abs(dd.y()) > p.aabb.y() + o.aabb.y() + gap)
+        continue;
+      const Vec3 ho = o.h + Vec3::Constant(0.5 * gap);
+      // Overlap on axis L at shift t: |dd.L - t L_z| < r_L; intersect over the axes.
+      double tlo = -std::numeric_limits<double>::infinity(), thi = std::numeric_limits<double>::infinity();
+      auto axis = [&](const Vec3& L) {
+        const double r = reach(hp, p.R, L) + reach(ho, o.R, L), c = dd.dot(L), a = L.z();
+        if (std::abs(a) < 1e-12) {
+          if (std::abs(c) >= r) tlo = thi = 0.0;  // separated for every t
+          return;
+        }
+        double t0 = (c - r) / a, t1 = (c + r) / a;
+        if (t0 > t1) std::swap(t0, t1);
+        tlo = std::max(tlo, t0);
+        thi = std::min(thi, t1);
+      };
+      for (int i = 0; i < 3 && tlo < thi; ++i) axis(p.R.col(i));
+      for (int i = 0; i < 3 && tlo < thi; ++i) axis(o.R.col(i));
+      for (int i = 0; i < 3 && tlo < thi; ++i)
+        for (int k = 0; k < 3 && tlo < thi; ++k) {
+          const Vec3 c = p.R.col(i).cross(o.R.col(k));
+          const double nc = c.norm();
+          if (nc >= 1e-6) axis(c / nc);
+        }
+      if (tlo < thi) ivals.emplace_back(tlo, thi);
     }
-    return false;
+    double t = 0.0;
+    for (bool moved = true; moved;) {
+      moved = false;
+      for (const auto& [a, b] : ivals)
+        if (a < t && t < b) {
+          t = keel ? a : b;
+          moved = true;
+        }
+    }
+    return t;
   };
+  const int ncand = d.placement_candidates;
   auto fill = [&](bool keel, double volume_target) {
     const std::vector<double>& xs = keel ? kxs : sxs;
     const std::vector<double>& cdf = keel ? kcdf : scdf;
     double vol = 0.0;
     while (vol < volume_target) {
-      Placed p;
       const double L = h_blk * std::exp(sample_ln_r(rng, lnm, lns));
       const double B = L * rng.uniform(d.width_fraction_min, d.width_fraction_max);
-      p.h = Vec3(0.5 * L, 0.5 * B, 0.5 * h_blk);
-      p.part = keel ? 0 : 1;
-      double x = sample_x(xs, cdf);
-      if (d.max_tilt_deg >= 90.0) {
-        p.q = rng.rotation();
-      } else {  // random yaw, then a tilt of U(0, max) about a random horizontal axis
-        const double yaw = kTwoPi * rng.uniform(), az = kTwoPi * rng.uniform();
-        const double tilt = d.max_tilt_deg * kDeg * rng.uniform();
-        p.q = Quat(Eigen::AngleAxisd(tilt, Vec3(std::cos(az), std::sin(az), 0.0))) *
-              Quat(Eigen::AngleAxisd(yaw, Vec3::UnitZ()));
+      Placed best;
+      double best_score = std::numeric_limits<double>::infinity();
+      for (int c = 0; c < ncand; ++c) {
+        Placed p;
+        p.h = Vec3(0.5 * L, 0.5 * B, 0.5 * h_blk);
+        p.part = keel ? 0 : 1;
+        const double x = sample_x(xs, cdf);
+        if (d.max_tilt_deg >= 90.0) {
+          p.q = rng.rotation();
+        } else {  // random yaw, then a tilt of U(0, max) about a random horizontal axis
+          const double yaw = kTwoPi * rng.uniform(), az = kTwoPi * rng.uniform();
+          const double tilt = d.max_tilt_deg * kDeg * rng.uniform();
+          p.q = Quat(Eigen::AngleAxisd(tilt, Vec3(std::cos(az), std::sin(az), 0.0))) *
+                Quat(Eigen::AngleAxisd(yaw, Vec3::UnitZ()));
+        }
+        double y = rng.uniform();
+        p.R = p.q.toRotationMatrix();
+        p.aabb = aabb_half(p.h, p.R);
+        const double ylo = p.aabb.y() + gap, yhi = d.length - p.aabb.y() - gap;
+        y = ylo < yhi ? ylo + y * (yhi - ylo) : 0.5 * d.length;
+        // Start just clear of the ice over the block's x range.
+        const double xl = x - p.aabb.x(), xr = x + p.aabb.x();
+        const bool over_cl = xl < 0.5 * wcl && xr > -0.5 * wcl;
+        const double t_ice = over_cl ? d.consolidated_layer_thickness : d.level_ice_thickness;
+        const double ice_z = keel ? -t_ice * d.ice_density / d.water_density - gap - p.aabb.z()
+                                  : t_ice * (1.0 - d.ice_density / d.water_density) + gap + p.aabb.z();
+        p.x = Vec3(x, y, ice_z);
+        p.x.z() += free_shift(p, keel);
+        // Score: how far the block reaches into the envelope, as a fraction of its
+        // local thickness (the emptiest place wins; > 1: it sticks out of the envelope).
+        const double reach_z = keel ? -(p.x.z() - p.aabb.z()) : p.x.z() + p.aabb.z();
+        const double target = keel ? keel_target_depth(d, x) : sail_target_height(d, x);
+        const double score = target > 0.0 ? reach_z / target : std::numeric_limits<double>::infinity();
+        if (score < best_score) best_score = score, best = p;
       }
-      double y = rng.uniform();
-      p.R = p.q.toRotationMatrix();
-      p.aabb = aabb_half(p.h, p.R);
-      const double ylo = p.aabb.y() + gap, yhi = d.length - p.aabb.y() - gap;
-      y = ylo < yhi ? ylo + y * (yhi - ylo) : 0.5 * d.length;
-      // Start just clear of the ice over the block's x range, then walk away from it.
-      double ice_z = 0.0;
-      const double xl = x - p.aabb.x(), xr = x + p.aabb.x();
-      const bool over_cl = xl < 0.5 * wcl && xr > -0.5 * wcl;
-      const double t_ice = over_cl ? d.consolidated_layer_thickness : d.level_ice_thickness;
-      if (keel)
-        ice_z = -t_ice * d.ice_density / d.water_density - gap - p.aabb.z();
-      else
-        ice_z = t_ice * (1.0 - d.ice_density / d.water_density) + gap + p.aabb.z();
-      p.x = Vec3(x, y, ice_z);
-      while (overlaps(p)) p.x.z() += keel ? -dz : dz;
       const std::int32_t id = static_cast<std::int32_t>(placed.size());
-      placed.push_back(p);
-      grid.insert(id, p.x - p.aabb - Vec3::Constant(gap), p.x + p.aabb + Vec3::Constant(gap));
-      vol += 8.0 * p.h.prod();
+      placed.push_back(best);
+      grid.insert(id, best.x - best.aabb - Vec3::Constant(gap), best.x + best.aabb + Vec3::Constant(gap));
+      vol += 8.0 * best.h.prod();
       if (placed.size() % 2000 == 0) report("place", 0.0, 0.0, placed.size());
     }
     return vol;
@@ -624,37 +685,89 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
     ids.push_back(world.add_block(bd));
   }
 
-  // ---- settle: step until the mean kinetic energy per block stays low for 1 s.
+  // ---- settle, in two phases (docs/ridge.md, Method 4). Compaction: ice-ice friction
+  // lowered to compaction_friction so the rising blocks slide into the voids of the pile
+  // (a numerical stand-in for the reworking a real keel gets while the ridge is pushed
+  // together; it is not the friction of the final state). Sail blocks keep their friction. Settle: the physical friction
+  // back, and a velocity-proportional damping (rate settle.damping, implicit) that only
+  // removes the slow creep of a deep pile under the sequential-impulse solver. Each phase
+  // ends when the mean kinetic energy per block stays below the threshold for 1 s.
   const double vcap = d.settle.speed_cap_factor * h_blk / d.settle.dt;
   const int check_every = std::max(1, static_cast<int>(std::lround(0.25 / d.settle.dt)));
   double below = 0.0, ke = 0.0;
-  bool settled = false;
+  bool settled = false, compacting = d.settle.compaction_time > 0.0;
   std::uint64_t steps = 0;
+  // Only keel blocks: keel-keel and keel-ice contacts lose their friction (the combined
+  // coefficient is a product), sail blocks keep theirs on the ice and on each other.
+  auto set_friction_all = [&](double mu) {
+    for (std::size_t i = 0; i < n; ++i)
+      if (placed[i].part == 0) world.set_friction(ids[i], mu);
+  };
+  if (compacting) {
+    set_friction_all(d.settle.compaction_friction);
+    world.set_solver_iterations(d.settle.compaction_solver_iterations);
+  }
+  double phase_start = 0.0;
+  // Positions at the last checks (a ring over >= 1 s): the displacement over the final
+  // second is reported next to the kinetic energy, as a direct measure of rest.
+  const int ring = static_cast<int>(std::ceil(1.0 / (check_every * d.settle.dt) - 1e-9)) + 1;
+  std::vector<std::vector<Vec3>> snaps(ring);
+  std::uint64_t nsnap = 0;
+  auto snapshot = [&]() {
+    std::vector<Vec3>& v = snaps[nsnap++ % ring];
+    v.resize(n);
+    for (std::size_t i = 0; i < n; ++i) v[i] = world.position(ids[i]);
+  };
+  if (n > 0) snapshot();
   while (n > 0) {
     world.substep();
     ++steps;
+    const double damp = compacting ? 1.0 : 1.0 / (1.0 + d.settle.damping * d.settle.dt);
     for (std::size_t i = 0; i < n; ++i) {
-      const Vec3 v = world.velocity(ids[i]);
-      const Vec3 w = world.angular_velocity(ids[i]);
+      Vec3 v = world.velocity(ids[i]);
+      Vec3 w = world.angular_velocity(ids[i]);
       const double sv = v.norm(), sw = w.norm() * placed[i].h.maxCoeff();
-      if (sv > vcap || sw > vcap)
-        world.set_velocity(ids[i], sv > vcap ? Vec3(v * (vcap / sv)) : v,
-                           sw > vcap ? Vec3(w * (vcap / sw)) : w);
+      if (sv > vcap) v *= vcap / sv;
+      if (sw > vcap) w *= vcap / sw;
+      if (sv > vcap || sw > vcap || damp != 1.0) world.set_velocity(ids[i], v * damp, w * damp);
     }
     if (steps % check_every != 0) continue;
     const double t = world.time();
     ke = world.kinetic_energy() / static_cast<double>(n);
-    report("settle", t, ke, n);
-    if (t >= d.settle.min_time && ke < d.settle.kinetic_energy_per_block) {
+    report(compacting ? "compact" : "settle", t, ke, n);
+    snapshot();
+    bool phase_done = false;
+    if (t - phase_start >= d.settle.min_time && ke < d.settle.kinetic_energy_per_block) {
       below += check_every * d.settle.dt;
-      if (below >= 1.0 - 1e-9) {
-        settled = true;
-        break;
-      }
+      phase_done = below >= 1.0 - 1e-9;
     } else {
       below = 0.0;
     }
+    if (compacting && (phase_done || t >= d.settle.compaction_time)) {
+      compacting = false;
+      res.stats.compaction_time = t;
+      set_friction_all(d.settle.friction);
+      world.set_solver_iterations(d.settle.solver_iterations);
+      phase_start = t;
+      below = 0.0;
+      continue;
+    }
+    if (phase_done) {
+      settled = true;
+      break;
+    }
     if (t >= d.settle.max_time) break;
+  }
+  if (nsnap >= 2) {  // displacement since the oldest snapshot in the ring (<= 1 s ago)
+    const std::vector<Vec3>& old = snaps[nsnap >= static_cast<std::uint64_t>(ring) ? nsnap % ring : 0];
+    const std::vector<Vec3>& now = snaps[(nsnap - 1) % ring];
+    double sum = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double dd = (now[i] - old[i]).norm();
+      sum += dd;
+      res.stats.final_max_displacement = std::max(res.stats.final_max_displacement, dd);
+    }
+    res.stats.final_mean_displacement = sum / static_cast<double>(n);
   }
   res.stats.settled = settled || n == 0;
   res.stats.settle_time = world.time();
@@ -867,7 +980,7 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
                       "keel_depth", "keel_width", "shoulder_slope_deg", "keel_profile_csv",
                       "keel_profile", "sail_height", "sail_width", "sail_slope_deg", "length",
                       "end_walls", "block_thickness", "aspect_lognormal", "block_width_fraction",
-                      "max_tilt_deg", "fill_porosity", "seed", "settle", "joints", "profile_bin", "porosity_grid"});
+                      "max_tilt_deg", "fill_porosity", "placement_candidates", "seed", "settle", "joints", "profile_bin", "porosity_grid"});
   r.string("name", d.name);
   r.number("level_ice_thickness", d.level_ice_thickness);
   r.number("consolidated_layer_thickness", d.consolidated_layer_thickness);
@@ -932,6 +1045,7 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
   }
   r.number("max_tilt_deg", d.max_tilt_deg);
   r.number("fill_porosity", d.fill_porosity);
+  r.integer("placement_candidates", d.placement_candidates);
   if (r.has("seed")) {
     const auto& v = r.get("seed");
     if (!v.is_number_integer() || (v.is_number_integer() && !v.is_number_unsigned() && v.get<std::int64_t>() < 0))
@@ -942,7 +1056,8 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
     const JsonReader s(r.get("settle"), r.at("settle"),
                        {"dt", "solver_iterations", "kinetic_energy_per_block", "min_time", "max_time",
                         "friction", "linear_drag", "quadratic_drag_cd", "speed_cap_factor",
-                        "allow_sleep"});
+                        "allow_sleep", "compaction_friction", "compaction_time", "compaction_solver_iterations",
+                        "damping"});
     s.number("dt", d.settle.dt);
     s.integer("solver_iterations", d.settle.solver_iterations);
     s.number("kinetic_energy_per_block", d.settle.kinetic_energy_per_block);
@@ -953,6 +1068,10 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
     s.number("quadratic_drag_cd", d.settle.quadratic_drag_cd);
     s.number("speed_cap_factor", d.settle.speed_cap_factor);
     s.boolean("allow_sleep", d.settle.allow_sleep);
+    s.number("compaction_friction", d.settle.compaction_friction);
+    s.number("compaction_time", d.settle.compaction_time);
+    s.number("damping", d.settle.damping);
+    s.integer("compaction_solver_iterations", d.settle.compaction_solver_iterations);
   }
   if (r.has("joints")) {
     const JsonReader s(r.get("joints"), r.at("joints"), {"gap", "min_area", "to_ice"});
@@ -995,6 +1114,7 @@ nlohmann::json ridge_def_to_json(const RidgeDef& d) {
   j["block_width_fraction"] = {d.width_fraction_min, d.width_fraction_max};
   j["max_tilt_deg"] = d.max_tilt_deg;
   j["fill_porosity"] = d.fill_porosity;
+  j["placement_candidates"] = d.placement_candidates;
   j["seed"] = d.seed;
   j["settle"] = {{"dt", d.settle.dt},
                  {"solver_iterations", d.settle.solver_iterations},
@@ -1005,7 +1125,11 @@ nlohmann::json ridge_def_to_json(const RidgeDef& d) {
                  {"linear_drag", d.settle.linear_drag},
                  {"quadratic_drag_cd", d.settle.quadratic_drag_cd},
                  {"speed_cap_factor", d.settle.speed_cap_factor},
-                 {"allow_sleep", d.settle.allow_sleep}};
+                 {"allow_sleep", d.settle.allow_sleep},
+                 {"compaction_friction", d.settle.compaction_friction},
+                 {"compaction_time", d.settle.compaction_time},
+                 {"compaction_solver_iterations", d.settle.compaction_solver_iterations},
+                 {"damping", d.settle.damping}};
   j["joints"] = {{"gap", d.joints.gap}, {"min_area", d.joints.min_area}, {"to_ice", d.joints.to_ice}};
   j["profile_bin"] = d.profile_bin;
   j["porosity_grid"] = d.porosity_grid;
@@ -1027,8 +1151,10 @@ nlohmann::json ridge_report(const RidgeResult& r) {
   j["keel_profile_rms_error_m"] = s.keel_profile_rms_error;
   j["settle"] = {{"settled", s.settled},
                  {"time_s", s.settle_time},
+                 {"compaction_end_s", s.compaction_time},
                  {"steps", s.settle_steps},
-                 {"kinetic_energy_per_block_J", s.final_kinetic_energy_per_block}};
+                 {"kinetic_energy_per_block_J", s.final_kinetic_energy_per_block},
+                 {"last_second_displacement_m", {{"mean", s.final_mean_displacement}, {"max", s.final_max_displacement}}}};
   j["max_final_overlap_m"] = s.max_final_overlap;
   j["wall_time_s"] = s.wall_time;
   return j;

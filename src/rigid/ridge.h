@@ -53,7 +53,7 @@ struct RidgeSettleDef {
   /// Rigid step, s. Stability rule (docs/ridge.md): v_max dt <= 0.25 h_min with the speed
   /// cap below, and the linear water drag explicit-stable: c_lin dt / (rho_i h_min) < 1.
   double dt = 1.0 / 30.0;
-  int solver_iterations = 10;
+  int solver_iterations = 20;
   /// Settled when the mean kinetic energy per block stays below this for 1 s, J.
   double kinetic_energy_per_block = 0.01;
   double min_time = 2.0;   ///< s, never stop before this
@@ -64,6 +64,16 @@ struct RidgeSettleDef {
   /// Speed cap while settling (generation only, not physics): |v| <= speed_cap_factor h_min/dt.
   double speed_cap_factor = 0.25;
   bool allow_sleep = true;          ///< Bullet deactivation of resting islands
+  /// Compaction phase (generation device, docs/ridge.md): friction while the blocks rise
+  /// and pack; ends when the KE criterion is met or at compaction_time (0: no such phase).
+  double compaction_friction = 0.0;
+  double compaction_time = 30.0;    ///< s, simulated
+  /// Solver iterations while compacting (the settle phase uses solver_iterations: a deep
+  /// pile at rest needs ~30 to bring the residual jitter under the KE threshold).
+  int compaction_solver_iterations = 10;
+  /// Settle phase (after compaction): velocity damping rate, 1/s (v /= 1 + damping dt per
+  /// step). Numerical: it stops the creep of the pile, it is not water drag.
+  double damping = 5.0;
 };
 
 /// Freeze-joint detection after settling.
@@ -105,7 +115,12 @@ struct RidgeDef {
   double max_tilt_deg = 90.0;
   /// Porosity assumed when counting how many blocks fill the target envelope:
   /// block volume = (1 - fill_porosity) x envelope volume (keel and sail separately).
-  double fill_porosity = 0.3;
+  /// Default: the whole-keel porosity the generator reaches (~0.4, docs/ridge.md), so the
+  /// keel comes out at its target depth.
+  double fill_porosity = 0.4;
+  /// Poses tried per block in the greedy deposition (the least deep one relative to the
+  /// target profile is kept); 1 is plain ballistic deposition (loose, porosity ~0.8).
+  int placement_candidates = 8;
   std::uint64_t seed = 1;
   RidgeSettleDef settle;
   RidgeJointDef joints;
@@ -158,9 +173,12 @@ struct RidgeStats {
   double sail_height_target = 0.0, sail_height_achieved = 0.0;
   double keel_profile_rms_error = 0.0;  ///< m, over bins where the target or achieved keel > 0
   double settle_time = 0.0;             ///< simulated s
+  double compaction_time = 0.0;         ///< simulated s at which the compaction phase ended
   std::uint64_t settle_steps = 0;
   bool settled = false;                 ///< KE criterion met before max_time
   double final_kinetic_energy_per_block = 0.0;  ///< J
+  /// Block displacement over the last second of settling, mean and max, m.
+  double final_mean_displacement = 0.0, final_max_displacement = 0.0;
   double max_final_overlap = 0.0;       ///< m, largest pairwise SAT penetration after settling
   double wall_time = 0.0;               ///< s (not reproducible; excluded from comparisons)
 };

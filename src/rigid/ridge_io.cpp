@@ -116,9 +116,11 @@ nlohmann::json stats_json(const RidgeStats& s) {
           {"keel_porosity", s.keel_porosity}, {"core_porosity", s.core_porosity},
           {"keel_depth_target", s.keel_depth_target}, {"keel_depth_achieved", s.keel_depth_achieved},
           {"sail_height_target", s.sail_height_target}, {"sail_height_achieved", s.sail_height_achieved},
-          {"keel_profile_rms_error", s.keel_profile_rms_error}, {"settle_time", s.settle_time},
+          {"keel_profile_rms_error", s.keel_profile_rms_error}, {"settle_time", s.settle_time}, {"compaction_time", s.compaction_time},
           {"settle_steps", s.settle_steps}, {"settled", s.settled},
           {"final_kinetic_energy_per_block", s.final_kinetic_energy_per_block},
+          {"final_mean_displacement", s.final_mean_displacement},
+          {"final_max_displacement", s.final_max_displacement},
           {"max_final_overlap", s.max_final_overlap}, {"wall_time", s.wall_time}};
 }
 
@@ -139,10 +141,13 @@ RidgeStats stats_from_json(const nlohmann::json& j) {
   s.sail_height_achieved = j.at("sail_height_achieved").get<double>();
   s.keel_profile_rms_error = j.at("keel_profile_rms_error").get<double>();
   s.settle_time = j.at("settle_time").get<double>();
+  s.compaction_time = j.value("compaction_time", 0.0);  // absent in files before it existed
   s.settle_steps = j.at("settle_steps").get<std::uint64_t>();
   s.settled = j.at("settled").get<bool>();
   s.final_kinetic_energy_per_block = j.at("final_kinetic_energy_per_block").get<double>();
   s.max_final_overlap = j.at("max_final_overlap").get<double>();
+  s.final_mean_displacement = j.value("final_mean_displacement", 0.0);
+  s.final_max_displacement = j.value("final_max_displacement", 0.0);
   s.wall_time = j.at("wall_time").get<double>();
   return s;
 }
