@@ -244,6 +244,7 @@ class Engine {
   // engine_parallel.cpp
   void exchange_full();
   void migrate(const std::vector<int>& dest, bool any_rank);
+  void drop_owned(const std::vector<char>& keep);
   void make_ghosts();
   void forward_ghosts();
   void reverse_ghost_forces();

@@ -73,6 +73,18 @@ double seconds_since(SteadyClock::time_point t0) {
 
 }  // namespace
 
+void Engine::drop_owned(const std::vector<char>& keep) {
+  // Owned particles (and their plane-wall friction history) whose keep flag is false leave.
+  const std::size_t n = ps_.owned();
+  for (auto& h : wall_hist_) {
+    std::size_t w = 0;
+    for (std::size_t i = 0; i < n; ++i)
+      if (keep[i]) h[w++] = h[i];
+    h.resize(w);
+  }
+  ps_.compact(keep);
+}
+
 std::int64_t Engine::global_particle_count() const {
   const auto n = static_cast<std::int64_t>(ps_.owned());
   return parallel() ? comm_->sum(n) : n;
@@ -120,13 +132,7 @@ void Engine::distribute(const par::Comm& comm, const ParallelDef& def) {
   for (const Bond& b : bonds_)
     if (keep[b.i]) mine.push_back(b);
   bonds_.swap(mine);
-  for (auto& h : wall_hist_) {
-    std::size_t w = 0;
-    for (std::size_t i = 0; i < n; ++i)
-      if (keep[i]) h[w++] = h[i];
-    h.resize(w);
-  }
-  ps_.compact(keep);
+  drop_owned(keep);
   for (Bond& b : bonds_) {  // owned end bound now (for the cost estimate), the other after the exchange
     b.i = ps_.local(b.gi);
     b.j = ps_.local(b.gj);
@@ -308,13 +314,7 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
   // Remove the leavers.
   std::vector<char> keep(n);
   for (std::size_t i = 0; i < n; ++i) keep[i] = dest[i] < 0;
-  for (auto& h : wall_hist_) {
-    std::size_t w = 0;
-    for (std::size_t i = 0; i < n; ++i)
-      if (keep[i]) h[w++] = h[i];
-    h.resize(w);
-  }
-  ps_.compact(keep);
+  drop_owned(keep);
   // Send, receive (only with peers unless the cuts moved or someone went far).
   std::vector<Bytes> in;
   std::vector<int> from;
