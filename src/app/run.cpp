@@ -173,6 +173,7 @@ struct H5 {
       case H5I_DATASPACE: H5Sclose(id); break;
       case H5I_ATTR: H5Aclose(id); break;
       case H5I_DATATYPE: H5Tclose(id); break;
+      case H5I_GENPROP_LST: H5Pclose(id); break;
       default: break;
     }
   }
@@ -180,10 +181,14 @@ struct H5 {
   H5& operator=(const H5&) = delete;
 };
 
+void h5check(herr_t rc, const std::string& what) {
+  if (rc < 0) throw std::runtime_error("HDF5: cannot " + what);
+}
+
 void h5_attr(hid_t obj, const std::string& name, double v) {
   H5 sp(H5Screate(H5S_SCALAR), "create a dataspace");
   H5 a(H5Acreate2(obj, name.c_str(), H5T_NATIVE_DOUBLE, sp.id, H5P_DEFAULT, H5P_DEFAULT), "create attribute " + name);
-  H5Awrite(a.id, H5T_NATIVE_DOUBLE, &v);
+  h5check(H5Awrite(a.id, H5T_NATIVE_DOUBLE, &v), "write attribute " + name);
 }
 
 void h5_attr(hid_t obj, const std::string& name, const std::string& v) {
@@ -191,7 +196,7 @@ void h5_attr(hid_t obj, const std::string& name, const std::string& v) {
   H5Tset_size(t.id, std::max<std::size_t>(1, v.size()));
   H5 sp(H5Screate(H5S_SCALAR), "create a dataspace");
   H5 a(H5Acreate2(obj, name.c_str(), t.id, sp.id, H5P_DEFAULT, H5P_DEFAULT), "create attribute " + name);
-  H5Awrite(a.id, t.id, v.c_str());
+  h5check(H5Awrite(a.id, t.id, v.c_str()), "write attribute " + name);
 }
 
 void h5_vector(hid_t group, const std::string& name, hid_t mem_type, const void* data, std::size_t n,
@@ -201,7 +206,7 @@ void h5_vector(hid_t group, const std::string& name, hid_t mem_type, const void*
   const hid_t file_type = mem_type == H5T_NATIVE_DOUBLE ? H5T_IEEE_F64LE : H5T_STD_I64LE;
   H5 d(H5Dcreate2(group, name.c_str(), file_type, sp.id, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT),
        "create dataset " + name);
-  if (n) H5Dwrite(d.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data);
+  if (n) h5check(H5Dwrite(d.id, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data), "write dataset " + name);
   h5_attr(d.id, "units", units);
   h5_attr(d.id, "description", description);
 }
@@ -217,7 +222,9 @@ struct AnalysisOut {
 };
 
 void write_analysis(const std::string& path, const AnalysisOut& a) {
-  H5 f(H5Fopen(path.c_str(), H5F_ACC_RDWR, H5P_DEFAULT), "reopen " + path + " to add /analysis");
+  H5 fapl(H5Pcreate(H5P_FILE_ACCESS), "create file access properties");
+  h5check(H5Pset_file_locking(fapl.id, 1, 1), "set file locking");  // as the run file was created
+  H5 f(H5Fopen(path.c_str(), H5F_ACC_RDWR, fapl.id), "reopen " + path + " to add /analysis");
   H5 g(H5Gcreate2(f.id, "/analysis", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /analysis");
   {
     H5 p(H5Gcreate2(g.id, "pieces", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /analysis/pieces");
@@ -239,7 +246,7 @@ void write_analysis(const std::string& path, const AnalysisOut& a) {
     h5_attr(i.id, "description", std::string("ISO 19906 (Croasdale & Cammaert) cone load for the scene's ice, "
                                              "rubble_height = max simulated pile height; forces in N"));
   }
-  H5Fflush(f.id, H5F_SCOPE_GLOBAL);
+  h5check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "flush " + path);
 }
 
 void print_warnings(const scene::Scene& s, std::FILE* err) {
@@ -556,6 +563,13 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     file.close();  // keep what was written so far (collective: every rank saw the same error)
     std::fprintf(progress, "hybridsim: output up to t = %g s kept in %s\n", e.time(), out_path.c_str());
     throw;
+  } catch (const std::exception& ex) {
+    if (!comm.parallel()) throw;
+    // Under MPI an error may have struck this rank alone; closing the file (collective) would
+    // wait for the others forever. Report and end all ranks; the file holds the last flush.
+    std::fprintf(stderr, "error (rank %d): %s; aborting all ranks, %s holds the output up to the last flush\n",
+                 comm.rank(), ex.what(), out_path.c_str());
+    comm.abort(1);
   }
   if (progress_line_open) std::fprintf(progress, "\n");
   const std::size_t rows = file.series_rows(id_time), snaps = file.snapshot_count();
@@ -580,7 +594,8 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
     }
   }
-  if (comm.rank() == 0) write_analysis(out_path, an);  // the file is closed; rank 0 adds /analysis
+  comm.barrier();  // every rank's close has completed before rank 0 reopens the file
+  if (comm.rank() == 0) write_analysis(out_path, an);  // rank 0 adds /analysis
   // Parallel figures: the slowest rank sets the pace; comm time is exchanges + reductions.
   double pf[3] = {e.parallel_stats().force_seconds, e.parallel_stats().comm_seconds, 0.0};
   const double force_time_sum = comm.sum(pf[0]);

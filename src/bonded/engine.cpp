@@ -668,8 +668,10 @@ void Engine::evaluate_forces(double history_dt) {
 void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
   const bool bad_here = !(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed) ||
                         !(worst_overlap_ratio_ <= def_.limits.max_overlap_ratio);
+  double crit = 0.0;
   if (parallel()) {
     if (global_max(bad_here ? 1.0 : 0.0) == 0.0) return;
+    crit = critical_time_step();  // collective: every rank, before the ranks part ways
     if (!bad_here) {
       std::ostringstream m;
       m << "simulation became unstable on another rank at step " << step_ << " (t = " << time_
@@ -678,6 +680,8 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
     }
   } else if (!bad_here) {
     return;
+  } else {
+    crit = critical_time_step();
   }
   std::ostringstream s;
   s.precision(6);
@@ -704,7 +708,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
   std::ostringstream m;
   m.precision(6);
   m << "simulation became unstable at step " << step_ << " (t = " << time_ << " s): " << s.str()
-    << ". Time step dt = " << dt_ << " s, critical dt = " << critical_time_step()
+    << ". Time step dt = " << dt_ << " s, critical dt = " << crit
     << " s. Reduce the time step (time.dt_alpha or time.dt), or check stiffness, damping and "
        "initial overlaps. Output written so far is kept; this step was not written.";
   throw SimulationError(m.str());
@@ -717,7 +721,9 @@ void Engine::step() {
   }
   std::size_t n = ps_.owned();
   const double dt = dt_, hdt = 0.5 * dt_;
-  const bool rotate = !bonds_.empty();
+  // Orientations matter only to bonds. Under MPI a rank may own bonded particles whose bonds
+  // live on a neighbour (the owner of the lower id), so there every orientation advances.
+  const bool rotate = !bonds_.empty() || parallel();
   Vec3* x = ps_.x.data();
   Vec3* v = ps_.v.data();
   Vec3* w = ps_.omega.data();

@@ -314,6 +314,7 @@ class Engine {
   std::vector<std::vector<std::uint32_t>> ghost_send_; ///< per peer: our owned particles it holds as ghosts
   std::vector<std::uint32_t> ghost_start_, ghost_n_;   ///< per peer: its ghosts' range in our store
   double halo_ = 0.0;
+  bool distributed_ = false;
   double max_bond_length_ = 0.0;
   std::uint64_t last_balance_step_ = 0;
   double force_seconds_since_balance_ = 0.0;

@@ -76,6 +76,7 @@ double seconds_since(SteadyClock::time_point t0) {
 void Engine::drop_owned(const std::vector<char>& keep) {
   // Owned particles (and their plane-wall friction history) whose keep flag is false leave.
   const std::size_t n = ps_.owned();
+  if (ps_.n_ghost != 0) throw std::logic_error("Engine::drop_owned: ghosts must be gone first");
   for (auto& h : wall_hist_) {
     std::size_t w = 0;
     for (std::size_t i = 0; i < n; ++i)
@@ -101,7 +102,8 @@ void Engine::distribute(const par::Comm& comm, const ParallelDef& def) {
   if (!comm.parallel()) return;
   const int me = comm.rank();
   const std::size_t n = ps_.owned();
-  if (ps_.n_ghost != 0) throw std::logic_error("Engine::distribute: called twice");
+  if (distributed_) throw std::logic_error("Engine::distribute: called twice");
+  distributed_ = true;
   // Every rank holds the same full system here, so local bounds are global.
   Vec3 lo = Vec3::Constant(INFINITY), hi = Vec3::Constant(-INFINITY);
   for (std::size_t i = 0; i < n; ++i) {
@@ -182,7 +184,7 @@ void Engine::maybe_balance(bool force) {
       b[3 + a] = std::min(b[3 + a], -ps_.x[i][a]);
     }
   for (double& x : b) x = -x;
-  comm_->max(b, 6);  // b = {-min, max}
+  comm_->max(b, 6);  // b = {-min, max}; a maximum is exact, so every rank has the same bits
   const Vec3 lo(-b[0], -b[1], -b[2]), hi(b[3], b[4], b[5]);
   const int nb = std::max(16, pdef_.histogram_bins);
   std::vector<double> h(3 * static_cast<std::size_t>(nb), 0.0);
@@ -192,7 +194,9 @@ void Engine::maybe_balance(bool force) {
       const int k = span > 0.0 ? std::clamp(static_cast<int>((ps_.x[i][a] - lo[a]) / span * nb), 0, nb - 1) : 0;
       h[a * nb + k] += w[i];
     }
-  comm_->sum(h.data(), static_cast<int>(h.size()));
+  // The cuts must be identical on every rank (or peers and owners would disagree): the sum is
+  // reduced on rank 0 and broadcast.
+  comm_->sum_same_everywhere(h.data(), static_cast<int>(h.size()));
   std::array<std::vector<double>, 3> hist;
   for (int a = 0; a < 3; ++a) hist[a].assign(h.begin() + a * nb, h.begin() + (a + 1) * nb);
   dom_.balance(hist, lo, hi);
@@ -218,12 +222,12 @@ void Engine::exchange_full() {
     lb = std::max(lb, (ps_.x[b.j] - ps_.x[b.i]).norm());
   }
   max_bond_length_ = unbound ? std::max(lb, max_bond_length_) : lb;
-  ps_.truncate(n);
-  for (auto& h : wall_hist_) h.resize(n);
-  for (const auto& p : pairs_)
+  for (const auto& p : pairs_)  // (ghost ids are still there to read)
     if (p.xi.squaredNorm() > 0.0 && p.i < n)
       carried_history_.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]),
                                ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+  ps_.truncate(n);
+  for (auto& h : wall_hist_) h.resize(n);
   // 2. Load balance (moves the cuts) while the pair counts still describe the work.
   const std::uint64_t balances_before = pstats_.balances;
   maybe_balance(false);
@@ -401,16 +405,20 @@ void Engine::make_ghosts() {
   for (auto& h : wall_hist_) h.resize(ps_.size(), Vec3::Zero());
   ps_.rebuild_index();
   // Bind bonds to local indices; a partner missing from owned + ghosts would be a lost bond.
+  std::string lost;
   for (Bond& b : bonds_) {
     b.i = ps_.local(b.gi);
     b.j = ps_.local(b.gj);
-    if (b.i == ParticleStore::kNone || b.i >= ps_.n_owned || b.j == ParticleStore::kNone) {
+    if ((b.i == ParticleStore::kNone || b.i >= ps_.n_owned || b.j == ParticleStore::kNone) && lost.empty()) {
       std::ostringstream s;
       s << "bond between particles " << b.gi << " and " << b.gj << " lost its partner at an MPI exchange "
-        << "(rank " << me << ", halo " << halo_ << " m); the bond is longer than the ghost halo";
-      throw SimulationError(s.str());
+        << "(rank " << me << ", halo " << halo_ << " m): the bond is longer than the ghost halo";
+      lost = s.str();
     }
   }
+  // Every rank stops together (a rank left alone would wait in the next exchange forever).
+  if (global_max(lost.empty() ? 0.0 : 1.0) > 0.0)
+    throw SimulationError(lost.empty() ? "a bond lost its partner at an MPI exchange on another rank" : lost);
 }
 
 void Engine::refresh_bond_counts() {
@@ -418,7 +426,7 @@ void Engine::refresh_bond_counts() {
   // Count every bond at both ends (ghost ends included), then send ghost counts home.
   for (auto& c : ps_.bond_count) c = 0;
   std::vector<std::uint32_t> cnt(ps_.size(), 0);
-  for (const Bond& b : bonds_) {
+  for (const Bond& b : bonds_) {  // (ghost counts are scratch: bond_forces may decrement them)
     ++cnt[b.i];
     ++cnt[b.j];
   }

@@ -31,6 +31,7 @@ class SerialComm final : public Comm {
   std::vector<Bytes> all_to_all(const std::vector<Bytes>& send) const override { return send; }
   Bytes gather(const Bytes& mine, int) const override { return mine; }
   std::intptr_t native() const override { return 0; }
+  [[noreturn]] void abort(int code) const override { std::exit(code); }
 };
 
 void check(int rc, const char* call) {
@@ -142,6 +143,10 @@ class MpiComm final : public Comm {
   }
 
   std::intptr_t native() const override { return reinterpret_cast<std::intptr_t>(c_); }
+  [[noreturn]] void abort(int code) const override {
+    MPI_Abort(c_, code);
+    std::exit(code);
+  }
 
  private:
   static constexpr int kTagSize = 101, kTagData = 102;

@@ -51,6 +51,9 @@ class Comm {
   virtual std::vector<Bytes> all_to_all(const std::vector<Bytes>& send) const = 0;
   /// Concatenation of every rank's bytes, on rank `root` only (others get {}).
   virtual Bytes gather(const Bytes& mine, int root = 0) const = 0;
+  /// Ends every rank at once (MPI_Abort; std::exit when serial): for an error that struck one
+  /// rank only, which the others would otherwise wait for in their next collective forever.
+  [[noreturn]] virtual void abort(int code) const = 0;
   /// Native MPI_Comm handle (as a pointer-sized integer) for HDF5's MPI-IO driver; 0 when serial.
   virtual std::intptr_t native() const = 0;
 };

@@ -3,6 +3,7 @@
 // compares the particles it owns by global id. Run by ctest at 1, 2 and 3 ranks.
 #include "../bonded/fixtures.h"
 #include "bonded/contact_linear.h"
+#include "common/error.h"
 #include "parallel/comm.h"
 
 #include <gtest/gtest.h>
@@ -38,7 +39,10 @@ double max_position_difference(const Engine& dist, const Engine& serial) {
   double m = 0.0;
   for (std::size_t i = 0; i < a.owned(); ++i) {
     const auto j = b.local(a.gid[i]);
-    if (j == ParticleStore::kNone) return INFINITY;
+    if (j == ParticleStore::kNone) {  // (still join the collective below)
+      m = INFINITY;
+      break;
+    }
     m = std::max(m, (a.x[i] - b.x[j]).cwiseAbs().maxCoeff());
   }
   return world().max(m);
@@ -163,15 +167,26 @@ TEST(Parallel, GranularFlowConservesParticlesThroughMigration) {
   pd.balance_interval = 200;  // cuts move while particles cross them
   Pair p = make_pair_of(d, build, pd);
   const std::int64_t n0 = p.dist->global_particle_count();
-  std::int64_t id_sum0 = 0;
-  for (std::size_t i = 0; i < p.serial->particles().size(); ++i) id_sum0 += p.serial->particles().gid[i];
+  // Count, sum and sum of squares of the ids: a lost particle and a duplicated one cannot
+  // both hide in all three.
+  std::int64_t id_sum0 = 0, id_sq0 = 0;
+  for (std::size_t i = 0; i < p.serial->particles().size(); ++i) {
+    const auto g = static_cast<std::int64_t>(p.serial->particles().gid[i]);
+    id_sum0 += g;
+    id_sq0 += g * g;
+  }
   bool ok = true;
   for (int k = 0; k < 3000; ++k) {
     p.dist->step();
     if (k % 100 == 99) {
-      std::int64_t ids = 0;
-      for (std::size_t i = 0; i < p.dist->particles().owned(); ++i) ids += p.dist->particles().gid[i];
-      ok = ok && p.dist->global_particle_count() == n0 && world().sum(ids) == id_sum0;
+      std::int64_t ids[2] = {0, 0};
+      for (std::size_t i = 0; i < p.dist->particles().owned(); ++i) {
+        const auto g = static_cast<std::int64_t>(p.dist->particles().gid[i]);
+        ids[0] += g;
+        ids[1] += g * g;
+      }
+      world().sum(ids, 2);
+      ok = ok && p.dist->global_particle_count() == n0 && ids[0] == id_sum0 && ids[1] == id_sq0;
     }
   }
   const std::int64_t migrated = world().sum(static_cast<std::int64_t>(p.dist->parallel_stats().migrated));
@@ -186,6 +201,77 @@ TEST(Parallel, GranularFlowConservesParticlesThroughMigration) {
   // Wall loads are summed over ranks: every rank sees the same total.
   const double fz = p.dist->wall_force(0).z();
   EXPECT_EQ(world().max(fz), -world().max(-fz));
+}
+
+TEST(Parallel, BondWhoseEndsSitOnDifferentRanksTurnsBothEnds) {
+  // Two bonded particles spinning and tumbling across the cut (x = 0): the bond lives on the
+  // rank of the lower id, so the other end's rank holds no bond at all, yet that end's
+  // orientation must advance (the bond's bending and twisting read it). With 3 ranks one rank
+  // holds nothing.
+  test::Ice ice;
+  EngineDef d = ice_def(INFINITY);
+  auto build = [&](Engine& e) {
+    auto a = test::sphere_at(ice, Vec3(-0.25, 0.0, 0.0), true);
+    auto b = test::sphere_at(ice, Vec3(0.25, 0.0, 0.0), true);
+    a.omega = Vec3(3.0, 0.5, 0.0);
+    b.omega = Vec3(-2.0, 0.0, 1.0);
+    a.v = Vec3(0.0, 0.0, 0.05);
+    b.v = Vec3(0.0, 0.1, -0.05);
+    e.add_particle(a);
+    e.add_particle(b);
+    e.bond_touching(0, 2, BondKind::Lattice);
+  };
+  ParallelDef pd;
+  pd.grid = {world().size(), 1, 1};
+  Pair p = make_pair_of(d, build, pd);
+  ASSERT_EQ(p.dist->global_bond_count(), 1);
+  double worst = 0.0;
+  for (int k = 0; k < 400; ++k) {
+    p.serial->step();
+    p.dist->step();
+  }
+  worst = max_position_difference(*p.dist, *p.serial);
+  // Orientations too: the twist lives in q.
+  double dq = 0.0;
+  for (std::size_t i = 0; i < p.dist->particles().owned(); ++i) {
+    const auto j = p.serial->particles().local(p.dist->particles().gid[i]);
+    dq = std::max(dq, (p.dist->particles().q[i].coeffs() - p.serial->particles().q[j].coeffs()).cwiseAbs().maxCoeff());
+  }
+  dq = world().max(dq);
+  const std::int64_t owners = world().sum(static_cast<std::int64_t>(p.dist->particles().owned() > 0));
+  if (world().rank() == 0)
+    std::printf("bond across ranks (%d ranks, %lld hold particles): |x - x_serial| = %.3e m, |q - q_serial| = %.3e\n",
+                world().size(), (long long)owners, worst, dq);
+  if (world().size() > 1) {
+    EXPECT_EQ(owners, 2) << "the two ends must sit on different ranks";
+  }
+  EXPECT_LT(worst, 1e-9);
+  EXPECT_LT(dq, 1e-9);
+}
+
+TEST(Parallel, InstabilityOnOneRankStopsEveryRank) {
+  // Two particles pushed deep into each other at the far end (one rank's box): every rank must
+  // throw SimulationError together (none may wait in a collective), and the rank that saw it
+  // names the particles.
+  test::Ice ice;
+  EngineDef d = ice_def(INFINITY);
+  auto build = [&](Engine& e) {
+    for (int k = 0; k < 8; ++k) e.add_particle(test::sphere_at(ice, Vec3(-4.0 + 0.6 * k, 0, 0)));
+    e.add_particle(test::sphere_at(ice, Vec3(4.0, 0, 0)));
+    e.add_particle(test::sphere_at(ice, Vec3(4.2, 0, 0)));  // overlap 0.3 m of r = 0.25 m
+  };
+  ParallelDef pd;
+  pd.grid = {world().size(), 1, 1};
+  Pair p = make_pair_of(d, build, pd);
+  std::string msg;
+  try {
+    p.dist->step();
+  } catch (const SimulationError& e) {
+    msg = e.what();
+  }
+  EXPECT_FALSE(msg.empty()) << "rank " << world().rank() << " did not stop";
+  const bool detailed = msg.find("between particles 8 and 9") != std::string::npos;
+  EXPECT_EQ(world().sum(static_cast<std::int64_t>(detailed)), 1) << msg;
 }
 
 }  // namespace
