@@ -685,13 +685,14 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
     ids.push_back(world.add_block(bd));
   }
 
-  // ---- settle, in two phases (docs/ridge.md, Method 4). Compaction: ice-ice friction
-  // lowered to compaction_friction so the rising blocks slide into the voids of the pile
-  // (a numerical stand-in for the reworking a real keel gets while the ridge is pushed
-  // together; it is not the friction of the final state). Sail blocks keep their friction. Settle: the physical friction
-  // back, and a velocity-proportional damping (rate settle.damping, implicit) that only
-  // removes the slow creep of a deep pile under the sequential-impulse solver. Each phase
-  // ends when the mean kinetic energy per block stays below the threshold for 1 s.
+  // ---- settle, in two phases (docs/ridge.md, Method 4). Compaction: the keel blocks'
+  // friction lowered to compaction_friction so the rising blocks slide into the voids of
+  // the pile (a numerical stand-in for the reworking a real keel gets while the ridge is
+  // pushed together; it is not the friction of the final state); sail blocks keep theirs.
+  // Settle: the physical friction back, more solver iterations, and a velocity-
+  // proportional damping (rate settle.damping, implicit) against the residual creep and
+  // solver jitter of a deep pile. Each phase ends when the mean kinetic energy per block
+  // stays below the threshold for 1 s (after min_time in that phase).
   const double vcap = d.settle.speed_cap_factor * h_blk / d.settle.dt;
   const int check_every = std::max(1, static_cast<int>(std::lround(0.25 / d.settle.dt)));
   double below = 0.0, ke = 0.0;
