@@ -637,7 +637,7 @@ void Engine::sync_before_forces() {
     forward_ghosts();
 }
 
-void Engine::evaluate_forces(double history_dt) {
+void Engine::evaluate_forces(double history_dt, bool finish) {
   const auto t0 = std::chrono::steady_clock::now();
   history_dt_ = history_dt;
   broken_now_[0] = broken_now_[1] = 0;
@@ -653,24 +653,33 @@ void Engine::evaluate_forces(double history_dt) {
   const double dt_force = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   pstats_.force_seconds += dt_force;
   force_seconds_since_balance_ += dt_force;
-  if (parallel()) {
-    reverse_ghost_forces();
-    reduce_loads();  // also sums broken_now_ over the ranks
-  }
+  if (parallel()) reverse_ghost_forces();
+  if (finish) finish_forces(false);
+  forces_valid_ = true;
+}
+
+bool Engine::finish_forces(bool bad_here) {
+  // One reduction per step carries the loads, the broken-bond counts and the blow-up flag.
+  double bad = bad_here ? 1.0 : 0.0;
+  if (parallel()) bad = reduce_loads(bad);
   stats_.bonds_broken_tension += broken_now_[0];
   stats_.bonds_broken_shear += broken_now_[1];
   stats_.bonds_broken += broken_now_[0] + broken_now_[1];
-  forces_valid_ = true;
+  return bad > 0.0;
 }
 
 // ---------------------------------------------------------------- integration
 
-void Engine::check_blowup(std::uint32_t worst, double worst_v2) const {
-  const bool bad_here = !(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed) ||
-                        !(worst_overlap_ratio_ <= def_.limits.max_overlap_ratio);
+bool Engine::unstable_here(double worst_v2) const {
+  return !(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed) ||
+         !(worst_overlap_ratio_ <= def_.limits.max_overlap_ratio);
+}
+
+void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_anywhere) const {
+  const bool bad_here = unstable_here(worst_v2);
   double crit = 0.0;
   if (parallel()) {
-    if (global_max(bad_here ? 1.0 : 0.0) == 0.0) return;
+    if (!unstable_anywhere) return;
     crit = critical_time_step();  // collective: every rank, before the ranks part ways
     if (!bad_here) {
       std::ostringstream m;
@@ -722,8 +731,9 @@ void Engine::step() {
   std::size_t n = ps_.owned();
   const double dt = dt_, hdt = 0.5 * dt_;
   // Orientations matter only to bonds. Under MPI a rank may own bonded particles whose bonds
-  // live on a neighbour (the owner of the lower id), so there every orientation advances.
-  const bool rotate = !bonds_.empty() || parallel();
+  // live on a neighbour (the owner of the lower id), so there orientations advance whenever any
+  // rank has a bond (max_bond_length_ is the global figure of the last exchange).
+  const bool rotate = !bonds_.empty() || (parallel() && max_bond_length_ > 0.0);
   Vec3* x = ps_.x.data();
   Vec3* v = ps_.v.data();
   Vec3* w = ps_.omega.data();
@@ -751,7 +761,7 @@ void Engine::step() {
     rebuild();
   else if (parallel())
     forward_ghosts();
-  evaluate_forces(dt);
+  evaluate_forces(dt, false);
   // The rebuild may have reordered the store (and, under MPI, changed who is owned): take every
   // array and the owned count afresh.
   n = ps_.owned();
@@ -773,7 +783,7 @@ void Engine::step() {
       if (std::isnan(v2)) break;
     }
   }
-  check_blowup(worst, worst_v2);
+  check_blowup(worst, worst_v2, finish_forces(unstable_here(worst_v2)));
   if (on_step) on_step(*this);
 }
 

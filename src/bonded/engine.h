@@ -235,7 +235,11 @@ class Engine {
 
  private:
   /// Forces at the current state; tangential springs advance by v_t * history_dt.
-  void evaluate_forces(double history_dt);
+  /// finish = false: the caller reduces the loads itself (finish_forces) after the kick.
+  void evaluate_forces(double history_dt, bool finish = true);
+  /// Loads, broken-bond counts and the blow-up flag summed over ranks; returns "unstable anywhere".
+  bool finish_forces(bool bad_here);
+  bool unstable_here(double worst_v2) const;
   void build_neighbors();
   /// Neighbour rebuild; under MPI first migration, load balance and new ghost lists.
   void rebuild();
@@ -248,7 +252,7 @@ class Engine {
   void make_ghosts();
   void forward_ghosts();
   void reverse_ghost_forces();
-  void reduce_loads();
+  double reduce_loads(double flag);
   void maybe_balance(bool force);
   std::vector<double> particle_work() const;
   void sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint32_t ncells);
@@ -262,7 +266,7 @@ class Engine {
   void pair_forces(const Law& law);
   void bond_forces();
   void kick_half();
-  void check_blowup(std::uint32_t worst, double worst_v2) const;
+  void check_blowup(std::uint32_t worst, double worst_v2, bool unstable_anywhere) const;
   double skin() const;
   double global_max(double v) const { return parallel() ? comm_->max(v) : v; }
 

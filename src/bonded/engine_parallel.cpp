@@ -269,8 +269,10 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     ++pstats_.migrated;
   }
   if (global_max(leaving.empty() ? 0.0 : 1.0) == 0.0) return;  // nobody moves
+  const bool any_leave = !leaving.empty();  // (this rank's scans below are for its own leavers)
   std::vector<Bond> stay;
   for (const Bond& b : bonds_) {
+    if (!any_leave) break;
     auto it = leaving.find(b.gi);
     if (it == leaving.end()) {
       stay.push_back(b);
@@ -279,8 +281,8 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     put(bonds_out[it->second], BondWire{b.gi, b.gj, static_cast<std::uint8_t>(b.kind), b.ref});
     ++nbonds[it->second];
   }
-  bonds_.swap(stay);
-  for (auto it = carried_history_.begin(); it != carried_history_.end();) {
+  if (any_leave) bonds_.swap(stay);
+  for (auto it = carried_history_.begin(); any_leave && it != carried_history_.end();) {
     auto l = leaving.find(it->first.a);
     if (l == leaving.end()) {
       ++it;
@@ -291,7 +293,7 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     it = carried_history_.erase(it);
   }
   for (std::uint32_t k = 0; k < meshes_.size(); ++k)
-    for (auto it = meshes_[k].history.begin(); it != meshes_[k].history.end();) {
+    for (auto it = meshes_[k].history.begin(); any_leave && it != meshes_[k].history.end();) {
       auto l = leaving.find(it->first.gid);
       if (l == leaving.end()) {
         ++it;
@@ -316,9 +318,11 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     m.insert(m.end(), mesh_out[r].begin(), mesh_out[r].end());
   }
   // Remove the leavers.
-  std::vector<char> keep(n);
-  for (std::size_t i = 0; i < n; ++i) keep[i] = dest[i] < 0;
-  drop_owned(keep);
+  if (any_leave) {
+    std::vector<char> keep(n);
+    for (std::size_t i = 0; i < n; ++i) keep[i] = dest[i] < 0;
+    drop_owned(keep);
+  }
   // Send, receive (only with peers unless the cuts moved or someone went far).
   std::vector<Bytes> in;
   std::vector<int> from;
@@ -373,6 +377,7 @@ void Engine::make_ghosts() {
   for (std::size_t i = 0; i < n; ++i) rmax = std::max(rmax, ps_.radius[i]);
   double g[2] = {rmax, max_bond_length_};
   comm_->max(g, 2);
+  max_bond_length_ = g[1];
   // Particles move less than skin/2 between rebuilds, so every partner stays inside the halo
   // until the next one (a missing partner is reported below, never silently dropped).
   halo_ = std::max(2.0 * g[0], 1.05 * g[1]) + skin();
@@ -403,7 +408,7 @@ void Engine::make_ghosts() {
   }
   ps_.n_ghost = ps_.size() - ps_.n_owned;
   for (auto& h : wall_hist_) h.resize(ps_.size(), Vec3::Zero());
-  ps_.rebuild_index();
+  // (ParticleStore::push keeps the id index up to date: no full rebuild of it here.)
   // Bind bonds to local indices; a partner missing from owned + ghosts would be a lost bond.
   std::string lost;
   for (Bond& b : bonds_) {
@@ -423,6 +428,10 @@ void Engine::make_ghosts() {
 
 void Engine::refresh_bond_counts() {
   if (!parallel()) return;
+  if (!(max_bond_length_ > 0.0)) {  // no bond on any rank (make_ghosts reduced the length)
+    for (auto& c : ps_.bond_count) c = 0;
+    return;
+  }
   // Count every bond at both ends (ghost ends included), then send ghost counts home.
   for (auto& c : ps_.bond_count) c = 0;
   std::vector<std::uint32_t> cnt(ps_.size(), 0);
@@ -507,7 +516,7 @@ void Engine::reverse_ghost_forces() {
   pstats_.comm_seconds += seconds_since(t0);
 }
 
-void Engine::reduce_loads() {
+double Engine::reduce_loads(double flag) {
   const auto t0 = SteadyClock::now();
   std::vector<double> v;
   for (const Vec3& f : wall_force_) v.insert(v.end(), f.data(), f.data() + 3);
@@ -518,6 +527,7 @@ void Engine::reduce_loads() {
   }
   v.push_back(static_cast<double>(broken_now_[0]));
   v.push_back(static_cast<double>(broken_now_[1]));
+  v.push_back(flag);
   comm_->sum(v.data(), static_cast<int>(v.size()));
   std::size_t k = 0;
   auto take = [&](Vec3& f) {
@@ -541,6 +551,7 @@ void Engine::reduce_loads() {
   broken_now_[0] = static_cast<std::uint64_t>(v[k++]);
   broken_now_[1] = static_cast<std::uint64_t>(v[k++]);
   pstats_.comm_seconds += seconds_since(t0);
+  return v[k];
 }
 
 }  // namespace hs::bonded
