@@ -1,0 +1,209 @@
+#include "converter.h"
+
+#include "common/error.h"
+
+#include <cmath>
+#include <cstdint>
+#include <stdexcept>
+#include <string>
+#include <unordered_map>
+#include <vector>
+
+namespace hs::bridge {
+
+namespace {
+
+bool finite(const Vec3& v) { return v.allFinite(); }
+
+std::string vec_str(const Vec3& v) {
+  return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) + ")";
+}
+
+// Existing particles binned in a uniform grid of cell h >= r_max + D/2, for the overlap test.
+struct OverlapGrid {
+  double h;
+  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> cells;
+  static std::int64_t key(std::int64_t x, std::int64_t y, std::int64_t z) {
+    // 21 bits per axis, offset so that negative cells map uniquely (|cell| < 2^20).
+    return ((x + (1 << 20)) << 42) | ((y + (1 << 20)) << 21) | (z + (1 << 20));
+  }
+  Eigen::Matrix<std::int64_t, 3, 1> cell(const Vec3& x) const {
+    return (x / h).array().floor().cast<std::int64_t>().matrix();
+  }
+};
+
+}  // namespace
+
+Mat3 box_inertia_world(const Vec3& he, const Quat& orientation, double mass) {
+  const Vec3 s = he.cwiseProduct(he);
+  const Vec3 d(mass / 3.0 * (s.y() + s.z()), mass / 3.0 * (s.x() + s.z()), mass / 3.0 * (s.x() + s.y()));
+  const Mat3 R = orientation.normalized().toRotationMatrix();
+  return R * d.asDiagonal() * R.transpose();
+}
+
+ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& mat) {
+  using namespace hs::bonded;
+  // ---- input checks ----
+  if (engine.parallel())
+    throw std::logic_error("convert_block: the converter is serial; convert before Engine::distribute()");
+  ParticleStore& ps = engine.particles();
+  if (ps.n_ghost != 0)
+    throw std::logic_error("convert_block: the engine holds ghost particles; convert before Engine::distribute()");
+  const double D = mat.diameter;
+  if (!(D > 0.0) || !std::isfinite(D))
+    throw InputError("material/diameter", "particle diameter must be positive and finite, got " + std::to_string(D));
+  const Vec3& he = block.half_extents;
+  if (!finite(he) || !(he.minCoeff() > 0.0))
+    throw InputError("block/half_extents", "half extents must be positive and finite, got " + vec_str(he));
+  if (2.0 * he.minCoeff() < D)
+    throw InputError("block/half_extents",
+                     "the block " + vec_str(2.0 * he) + " m is thinner than one particle (D = " + std::to_string(D) +
+                         " m) along some axis; use a smaller particle diameter or keep the block rigid");
+  if (!finite(block.pose.position) || !finite(block.velocity) || !finite(block.angular_velocity))
+    throw InputError("block", "position, velocity and angular velocity must be finite");
+  const Quat& q0 = block.pose.orientation;
+  if (!q0.coeffs().allFinite() || !(q0.norm() > 1e-12))
+    throw InputError("block/orientation", "orientation quaternion must be finite and non-zero");
+  const double V = 8.0 * he.x() * he.y() * he.z();
+  double M = block.mass;
+  if (M > 0.0) {
+    if (!std::isfinite(M)) throw InputError("block/mass", "mass must be finite");
+    if (block.density > 0.0 && std::abs(block.density * V - M) > 1e-9 * M)
+      throw InputError("block", "mass " + std::to_string(M) + " kg and density " + std::to_string(block.density) +
+                                    " kg/m^3 x volume " + std::to_string(V) + " m^3 disagree; give one of them");
+  } else {
+    if (block.mass < 0.0 || !(block.density > 0.0) || !std::isfinite(block.density))
+      throw InputError("block", "give a positive mass (kg) or density (kg/m^3); got mass " +
+                                    std::to_string(block.mass) + ", density " + std::to_string(block.density));
+    M = block.density * V;
+  }
+  const WaterParams& water = engine.def().water;
+  if (water.enabled && water.model != mat.buoyancy)
+    throw InputError("material/buoyancy",
+                     "the engine's water uses a different buoyancy model from the converted ice's; the lattice "
+                     "floats like the block only with the model it was made for (docs/bridge.md)");
+
+  // ---- 1. lattice in the block's frame ----
+  Pose pose = block.pose;
+  pose.orientation = q0.normalized();
+  // hcp_fill_box starts each row D/2 inside the -x face and keeps centres up to the +x face,
+  // so rows shifted by D/2 get a site ON each x face: one site too many per row, the lattice
+  // overhanging the block by D/2 and its inertia about y and z ~10 % high (2 m x 1.5 m x 1 m,
+  // D = 0.25 m). Insetting the fill box by D/4 in x leaves W/D sites in every row (W/D whole),
+  // whose cells tile the block's width (docs/bridge.md).
+  const Vec3 he_fill(he.x() - 0.25 * D, he.y(), he.z());
+  std::vector<Vec3> x = hcp_fill_box(he_fill, pose, D);
+  if (x.empty())
+    throw InputError("block/half_extents", "no HCP site fits in the block " + vec_str(2.0 * he) +
+                                               " m with D = " + std::to_string(D) + " m");
+
+  // ---- 2. centroid onto the block centre ----
+  const Vec3 c = pose.position;
+  Vec3 centroid = Vec3::Zero();
+  for (const auto& p : x) centroid += p;
+  centroid /= static_cast<double>(x.size());
+  const Vec3 shift = c - centroid;
+  if (shift.norm() > D)  // cannot happen for hcp_fill_box (margins < D/2 in-plane, < c/4 in z)
+    throw std::logic_error("convert_block: lattice centroid is " + std::to_string(shift.norm()) +
+                           " m from the block centre, more than one lattice spacing");
+  for (auto& p : x) p += shift;
+
+  // ---- 3. drop sites overlapping existing particles ----
+  const std::size_t n_old = ps.size();
+  std::vector<char> keep(x.size(), 1);
+  std::size_t dropped = 0;
+  if (n_old > 0) {
+    double rmax = 0.0;
+    for (std::size_t j = 0; j < n_old; ++j) rmax = std::max(rmax, ps.radius[j]);
+    OverlapGrid g{rmax + 0.5 * D, {}};
+    for (std::size_t j = 0; j < n_old; ++j) {
+      const auto k = g.cell(ps.x[j]);
+      g.cells[OverlapGrid::key(k.x(), k.y(), k.z())].push_back(static_cast<std::uint32_t>(j));
+    }
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      const auto k = g.cell(x[i]);
+      bool hit = false;
+      for (int dx = -1; dx <= 1 && !hit; ++dx)
+        for (int dy = -1; dy <= 1 && !hit; ++dy)
+          for (int dz = -1; dz <= 1 && !hit; ++dz) {
+            auto it = g.cells.find(OverlapGrid::key(k.x() + dx, k.y() + dy, k.z() + dz));
+            if (it == g.cells.end()) continue;
+            for (std::uint32_t j : it->second)
+              if ((ps.x[j] - x[i]).norm() < ps.radius[j] + 0.5 * D) { hit = true; break; }
+          }
+      if (hit) { keep[i] = 0; ++dropped; }
+    }
+  }
+  std::vector<Vec3> kept;
+  kept.reserve(x.size() - dropped);
+  for (std::size_t i = 0; i < x.size(); ++i)
+    if (keep[i]) kept.push_back(x[i]);
+  if (kept.empty())
+    throw InputError("block", "every lattice site of the block overlaps existing particles; nothing to convert");
+
+  // ---- 4. mass and buoyant volume ----
+  const double n = static_cast<double>(kept.size());
+  const double m = M / n, Vb = V / n, r = 0.5 * D;
+  const double Is = 0.4 * m * r * r;  // sphere inertia, as ParticleStore sets it
+
+  // ---- 5. momentum ----
+  Vec3 cp = Vec3::Zero();
+  for (const auto& p : kept) cp += p;
+  cp /= n;
+  Mat3 Ip = Mat3::Zero();
+  for (const auto& p : kept) {
+    const Vec3 ri = p - cp;
+    Ip += m * (ri.squaredNorm() * Mat3::Identity() - ri * ri.transpose());
+  }
+  Ip += n * Is * Mat3::Identity();
+  const Mat3 Ib = box_inertia_world(he, pose.orientation, M);
+  const Vec3& v = block.velocity;
+  const Vec3& w = block.angular_velocity;
+  // Block's angular momentum about c' (equals the particles' there, since both carry M v).
+  const Vec3 L_cp = Ib * w + (c - cp).cross(M * v);
+  const Vec3 wp = Ip.ldlt().solve(L_cp);
+
+  ConversionReport rep;
+  rep.first = n_old;
+  rep.first_gid = ps.next_gid();
+  rep.particles_dropped = dropped;
+  rep.mass = M;
+  rep.volume = V;
+  rep.lattice_shift = shift;
+  rep.com_shift = cp - c;
+  rep.linear_momentum_before = M * v;
+  rep.angular_momentum_before = Ib * w + c.cross(M * v);
+  rep.kinetic_energy_before = 0.5 * M * v.squaredNorm() + 0.5 * w.dot(Ib * w);
+
+  ps.reserve(n_old + kept.size());
+  for (const auto& p : kept) {
+    ParticleInit pi;
+    pi.x = p;
+    pi.v = v + wp.cross(p - cp);
+    pi.omega = wp;
+    pi.q = pose.orientation;
+    pi.radius = r;
+    pi.mass = m;
+    pi.buoyant_volume = Vb;
+    pi.material = mat.material;
+    engine.add_particle(pi);
+  }
+  rep.particles_created = kept.size();
+
+  // ---- 6. lattice bonds among the new particles ----
+  rep.bonds_created = engine.bond_touching(n_old, ps.size(), BondKind::Lattice);
+
+  Vec3 P = Vec3::Zero(), L = Vec3::Zero();
+  double ke = 0.0;
+  for (std::size_t i = n_old; i < ps.size(); ++i) {
+    P += ps.mass[i] * ps.v[i];
+    L += ps.x[i].cross(ps.mass[i] * ps.v[i]) + Is * ps.omega[i];
+    ke += 0.5 * ps.mass[i] * ps.v[i].squaredNorm() + 0.5 * Is * ps.omega[i].squaredNorm();
+  }
+  rep.linear_momentum_after = P;
+  rep.angular_momentum_after = L;
+  rep.kinetic_energy_after = ke;
+  return rep;
+}
+
+}  // namespace hs::bridge

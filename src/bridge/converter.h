@@ -1,0 +1,74 @@
+// Block -> particle converter (docs/bridge.md): turns a rigid ice block into a bonded HCP
+// lattice of particles inside a serial hs::bonded::Engine, conserving the block's mass,
+// displaced volume, linear momentum and angular momentum exactly.
+//
+// Method, in order:
+//   1. Lattice: hs::bonded::hcp_fill_box(half_extents - (D/4, 0, 0), pose, D) in the block's own
+//      frame (the x inset gives every in-plane row W/D sites instead of W/D + 1, see the .cpp).
+//   2. Centre of mass: the lattice is translated by s = c - (mean of the centres) so its
+//      centroid sits on the block centre c (|s| < D always for a box; larger is refused).
+//   3. Overlap: a new centre closer than r_j + D/2 to an existing particle j (i.e. in contact
+//      overlap with it) is dropped, so no contact spring starts compressed; the count is
+//      reported. Nothing is shifted after this step.
+//   4. Mass and buoyancy: each kept particle gets m = M/n and V_b = V_block/n (n kept): the
+//      lattice weighs exactly M and displaces exactly V_block (docs/bridge.md, vs rho_i V_cell).
+//   5. Momentum: with c' the kept particles' centre of mass and r_i = x_i - c',
+//        v_i = v + omega' x r_i,  omega_i = omega',  where  (sum_i m_i (|r_i|^2 1 - r_i r_i^T) + sum_i I_i 1) omega' = I_block omega + M (c - c') x v,
+//      I_block = R diag(M/3 (b^2+c^2), ...) R^T. Linear momentum is M v and angular momentum
+//      about any point equals the block's (sum m_i r_i = 0). Kinetic energy is not conserved in
+//      general (the lattice's inertia differs from the box's); the change is reported.
+//   6. Bonds: Engine::bond_touching over the new particles (BondKind::Lattice), stress free.
+// Global ids come from the engine's counter: same engine state and inputs, same ids.
+#pragma once
+
+#include "bonded/engine.h"
+#include "bonded/hcp_lattice.h"
+
+#include <cstddef>
+
+namespace hs::bridge {
+
+/// State of the rigid block at the moment of conversion (world frame, SI units).
+struct BlockState {
+  Vec3 half_extents{0.5, 0.5, 0.5};   ///< m, all > 0
+  bonded::Pose pose;                  ///< centre (m) and orientation (body -> world)
+  Vec3 velocity = Vec3::Zero();       ///< of the centre, m/s
+  Vec3 angular_velocity = Vec3::Zero();  ///< world frame, rad/s
+  double density = 0.0;               ///< rho_i, kg/m^3 (used when mass == 0)
+  double mass = 0.0;                  ///< M, kg; > 0 overrides density (both set: must agree)
+};
+
+/// The particle material the block becomes.
+struct IceMaterial {
+  double diameter = 0.5;              ///< D, m
+  /// Buoyancy model the lattice is meant for; must match the engine's water model when the
+  /// engine has water (Column: the lattice floats like the solid, docs/engine.md).
+  bonded::BuoyancyModel buoyancy = bonded::BuoyancyModel::Column;
+  bonded::MaterialIndex material = 0;
+};
+
+struct ConversionReport {
+  std::size_t first = 0;              ///< index of the first new particle in the store
+  std::size_t particles_created = 0;  ///< new particles are [first, first + particles_created)
+  std::size_t particles_dropped = 0;  ///< lattice sites dropped for overlapping existing particles
+  std::size_t bonds_created = 0;
+  GlobalId first_gid = 0;     ///< ids are first_gid, first_gid + 1, ... in store order
+  double mass = 0.0;                  ///< M, kg (= sum of the new particles' masses)
+  double volume = 0.0;                ///< V_block, m^3 (= sum of their buoyant volumes)
+  Vec3 lattice_shift = Vec3::Zero();  ///< translation applied to the lattice (step 2), m
+  Vec3 com_shift = Vec3::Zero();      ///< final centre of mass of the particles - block centre, m
+  Vec3 linear_momentum_before = Vec3::Zero(), linear_momentum_after = Vec3::Zero();    ///< kg m/s
+  /// About the world origin, kg m^2/s.
+  Vec3 angular_momentum_before = Vec3::Zero(), angular_momentum_after = Vec3::Zero();
+  double kinetic_energy_before = 0.0, kinetic_energy_after = 0.0;  ///< J
+};
+
+/// Inertia tensor (world frame, about its centre) of a solid box of mass M, kg m^2.
+Mat3 box_inertia_world(const Vec3& half_extents, const Quat& orientation, double mass);
+
+/// Converts `block` into bonded particles appended to `engine` (serial, before distribute()).
+/// Throws hs::InputError (path "block" or "material") on bad input and std::logic_error when the
+/// engine is distributed over MPI or holds ghosts.
+ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& material);
+
+}  // namespace hs::bridge
