@@ -4,7 +4,9 @@
 //
 // Method, in order:
 //   1. Lattice: hs::bonded::hcp_fill_box(half_extents - (D/4, 0, 0), pose, D) in the block's own
-//      frame (the x inset gives every in-plane row W/D sites instead of W/D + 1, see the .cpp).
+//      frame (the x inset gives every in-plane row W/D sites instead of W/D + 1, see the .cpp);
+//      every layer is then trimmed to the smallest layer's count (a solid block has the same
+//      area at every height; with Column buoyancy the waterline layer sets the waterplane).
 //   2. Centre of mass: the lattice is translated by s = c - (mean of the centres) so its
 //      centroid sits on the block centre c (|s| < D always for a box; larger is refused).
 //   3. Overlap: a new centre closer than r_j + D/2 to an existing particle j (i.e. in contact
@@ -51,6 +53,7 @@ struct ConversionReport {
   std::size_t first = 0;              ///< index of the first new particle in the store
   std::size_t particles_created = 0;  ///< new particles are [first, first + particles_created)
   std::size_t particles_dropped = 0;  ///< lattice sites dropped for overlapping existing particles
+  std::size_t sites_trimmed = 0;      ///< lattice sites trimmed to give every layer the same count
   std::size_t bonds_created = 0;
   GlobalId first_gid = 0;     ///< ids are first_gid, first_gid + 1, ... in store order
   double mass = 0.0;                  ///< M, kg (= sum of the new particles' masses)

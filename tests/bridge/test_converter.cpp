@@ -138,9 +138,9 @@ TEST(Converter, FloatingBlockKeepsItsDraftAndComesToRest) {
   d.water.linear_drag = 2.0 * mat.cell_mass() * omega_heave;
   Engine e(d);
   BlockState b;
-  // 2 m x 2 m: its A and B layers hold the same number of sites (72 each with D = 0.25 m), so the
-  // lattice's waterplane is the block's (docs/bridge.md, "Floating").
-  b.half_extents = Vec3(1.0, 1.0, 0.5 * h);
+  // 3 m x 3 m: cut from the box its A and B layers hold 168 and 156 sites (D = 0.25 m); the
+  // converter trims them to equal counts, without which the draft moved by 5 % of the freeboard.
+  b.half_extents = Vec3(1.5, 1.5, 0.5 * h);
   const double draft = h * kRhoI / kRhoW, freeboard = h - draft;
   b.pose.position = Vec3(0.0, 0.0, 0.5 * h - draft);  // block's own floating equilibrium
   b.pose.orientation = Quat(Eigen::AngleAxisd(0.3, Vec3::UnitZ()));
@@ -156,9 +156,10 @@ TEST(Converter, FloatingBlockKeepsItsDraftAndComesToRest) {
   const double z1 = centre_of_mass(e, 0, n).z();
   double vmax = 0;
   for (std::size_t i = 0; i < n; ++i) vmax = std::max(vmax, e.particles().v[i].norm());
-  std::printf("[floating] %zu particles, %d layers, h = %.4f m, freeboard %.4f m; COM z %.6f -> %.6f m after %.3f s: "
+  EXPECT_GT(r.sites_trimmed, 0u) << "the test must exercise layer balancing";
+  std::printf("[floating] %zu particles (%zu sites trimmed), %d layers, h = %.4f m, freeboard %.4f m; COM z %.6f -> %.6f m after %.3f s: "
               "draft change %.2e m = %.3f %% of the freeboard; max speed %.2e m/s\n",
-              r.particles_created, layers, h, freeboard, z0, z1, e.time(), z0 - z1,
+              r.particles_created, r.sites_trimmed, layers, h, freeboard, z0, z1, e.time(), z0 - z1,
               100.0 * (z0 - z1) / freeboard, vmax);
   EXPECT_LT(std::abs(z1 - z0), 0.02 * freeboard);
   EXPECT_LT(vmax, 1e-3);
