@@ -1,6 +1,8 @@
 #include "hcp_lattice.h"
 
+#include <algorithm>
 #include <cmath>
+#include <map>
 #include <stdexcept>
 
 namespace hs::bonded {
@@ -72,6 +74,29 @@ std::vector<Vec3> hcp_fill_prism(const std::vector<Eigen::Vector2d>& poly, doubl
     return in;
   };
   return fill(xmin - D, xmax, ymin - D, ymax, 0.5 * c, layers, D, pose, inside);
+}
+
+std::size_t hcp_equalize_layers(std::vector<Vec3>& centres, const Pose& pose, double D) {
+  const Mat3 R = pose.orientation.toRotationMatrix();
+  const double c = hcp_layer_spacing(D);
+  std::map<long, std::vector<Vec3>> layers;  // local coordinates, by layer (spacing c: keys 4 apart)
+  for (const auto& p : centres) {
+    const Vec3 l = R.transpose() * (p - pose.position);
+    layers[std::lround(l.z() / c * 4.0)].push_back(l);
+  }
+  std::size_t n_min = centres.size();
+  for (const auto& [k, v] : layers) n_min = std::min(n_min, v.size());
+  const std::size_t removed = centres.size() - n_min * layers.size();
+  centres.clear();
+  for (auto& [k, v] : layers) {
+    std::sort(v.begin(), v.end(), [](const Vec3& a, const Vec3& b) {
+      return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y();
+    });
+    std::size_t lo = 0, hi = v.size();
+    for (std::size_t q = 0; hi - lo > n_min; ++q) (q % 2 ? lo++ : hi--);
+    for (std::size_t i = lo; i < hi; ++i) centres.push_back(pose.position + R * v[i]);
+  }
+  return removed;
 }
 
 }  // namespace hs::bonded

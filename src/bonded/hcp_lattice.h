@@ -34,4 +34,13 @@ std::vector<Vec3> hcp_fill_box(const Vec3& half, const Pose& pose, double D);
 std::vector<Vec3> hcp_fill_prism(const std::vector<Eigen::Vector2d>& polygon, double height,
                                  const Pose& pose, double D);
 
+/// Trims every layer of HCP centres (placed at `pose`, layers normal to its local z) to the
+/// smallest layer's count. A box cut from HCP generally holds different counts in its A and B
+/// layers; a solid block has the same area at every height, and with Column buoyancy the
+/// waterline layer's count sets the waterplane area, so unequal layers float off the solid's
+/// draft. The surplus is taken alternately from each layer's -x and +x ends (local frame).
+/// Returns the number of centres removed; the others keep their order within a layer, layers
+/// from bottom to top.
+std::size_t hcp_equalize_layers(std::vector<Vec3>& centres, const Pose& pose, double D);
+
 }  // namespace hs::bonded

@@ -102,30 +102,8 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   // ---- 1b. same number of sites in every layer ----
   // A and B layers cut from a box can hold different counts; a solid block has the same area
   // at every height, and with Column buoyancy the waterline layer's count sets the waterplane
-  // area, so trim every layer to the smallest count (surplus taken alternately from the layer's
-  // -x and +x ends, in local coordinates), as the engine's floating-slab validation does.
-  std::size_t trimmed = 0;
-  {
-    const Mat3 R = pose.orientation.toRotationMatrix();
-    const double c_layer = hcp_layer_spacing(D);
-    std::map<long, std::vector<Vec3>> layers;  // local coordinates, keyed by layer index
-    for (const auto& p : x) {
-      const Vec3 l = R.transpose() * (p - pose.position);
-      layers[std::lround((l.z() + he.z()) / c_layer - 0.5)].push_back(l);
-    }
-    std::size_t n_min = x.size();
-    for (const auto& [k, v] : layers) n_min = std::min(n_min, v.size());
-    trimmed = x.size() - n_min * layers.size();
-    x.clear();
-    for (auto& [k, v] : layers) {
-      std::sort(v.begin(), v.end(), [](const Vec3& a, const Vec3& b) {
-        return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y();
-      });
-      std::size_t lo = 0, hi = v.size();
-      for (std::size_t k2 = 0; hi - lo > n_min; ++k2) (k2 % 2 ? lo++ : hi--);
-      for (std::size_t i = lo; i < hi; ++i) x.push_back(pose.position + R * v[i]);
-    }
-  }
+  // area, so trim every layer to the smallest count (hcp_equalize_layers).
+  const std::size_t trimmed = hcp_equalize_layers(x, pose, D);
 
   // ---- 2. centroid onto the block centre ----
   const Vec3 c = pose.position;

@@ -360,20 +360,7 @@ void build_slab(Engine& e, const test::Ice& ice, int nl, double z_bottom, std::v
   // every layer, so trim every layer to the smallest count, dropping particles from the
   // x edges. (Otherwise the partly submerged top layer must make up for the others'
   // count and the freeboard is off by a few %.)
-  std::map<long, std::vector<Vec3>> layers;
-  for (const auto& x : centres) layers[std::lround(x.z() / c * 4.0)].push_back(x);
-  std::size_t n_min = centres.size();
-  for (const auto& [key, v] : layers) n_min = std::min(n_min, v.size());
-  centres.clear();
-  for (auto& [key, v] : layers) {
-    std::sort(v.begin(), v.end(), [](const Vec3& a, const Vec3& b) {
-      return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y();
-    });
-    // drop the surplus alternately from the -x and +x edges, keeping the slab balanced
-    std::size_t lo = 0, hi = v.size();
-    for (std::size_t k = 0; hi - lo > n_min; ++k) (k % 2 ? lo++ : hi--);
-    centres.insert(centres.end(), v.begin() + lo, v.begin() + hi);
-  }
+  hcp_equalize_layers(centres, pose, ice.D);
   const double z_top = z_bottom + (nl - 0.5) * c;
   for (const auto& x : centres) {
     const auto i = e.add_particle(test::sphere_at(ice, x, true));
