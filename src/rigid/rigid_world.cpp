@@ -33,6 +33,29 @@ struct BlockSlot {
   Vec3 imp_linear = Vec3::Zero(), imp_angular = Vec3::Zero();
 };
 
+struct MeshSlot {
+  Vec3 origin = Vec3::Zero(), velocity = Vec3::Zero();
+  double friction = 0.1;
+  std::vector<btScalar> vertices;  // Bullet keeps pointers into these arrays
+  std::vector<int> indices;
+  std::vector<std::uint16_t> part;
+  std::unique_ptr<btTriangleIndexVertexArray> array;
+  std::unique_ptr<btBvhTriangleMeshShape> shape;
+  std::unique_ptr<btRigidBody> body;
+  MeshLoad load;
+};
+
+// User index 2 of a kinematic mesh body; blocks keep Bullet's default (-1).
+constexpr int kMeshTag = 1;
+
+// Friction of a contact: a mesh imposes its own coefficient; two blocks meet with the
+// product of their stored square roots (see add_block).
+btScalar combined_friction(const btCollisionObject* a, const btCollisionObject* b) {
+  if (a->getUserIndex2() == kMeshTag) return a->getFriction();
+  if (b->getUserIndex2() == kMeshTag) return b->getFriction();
+  return a->getFriction() * b->getFriction();
+}
+
 struct JointSlot {
   std::uint32_t generation = 0;
   bool alive = false;   // slot in use (intact or broken)
@@ -63,6 +86,7 @@ struct RigidWorld::Impl {
   std::vector<std::unique_ptr<JointSlot>> joints;
   std::vector<std::uint32_t> free_joints;
   std::size_t intact_joints = 0, broken_joints = 0;
+  std::vector<std::unique_ptr<MeshSlot>> meshes;
   double time = 0.0;
   std::uint64_t steps = 0;
 
@@ -104,6 +128,52 @@ struct RigidWorld::Impl {
       }
     }
   }
+
+  // Sums the impulses the solver applied at every contact point of a mesh body during
+  // the last step. Bullet applies +(n j_n + d1 j_1 + d2 j_2) to body 0 of a manifold and
+  // the opposite to body 1 (n = m_normalWorldOnB, d1, d2 the friction directions).
+  void tally_mesh_loads(double h) {
+    for (auto& mp : meshes) {
+      MeshLoad& L = mp->load;
+      L.force.setZero();
+      L.moment.setZero();
+      std::fill(L.part_force.begin(), L.part_force.end(), Vec3::Zero());
+      std::fill(L.part_moment.begin(), L.part_moment.end(), Vec3::Zero());
+      L.contacts = 0;
+    }
+    if (meshes.empty()) return;
+    const int nm = dispatcher->getNumManifolds();
+    for (int k = 0; k < nm; ++k) {
+      const btPersistentManifold* man = dispatcher->getManifoldByIndexInternal(k);
+      const btCollisionObject* b0 = man->getBody0();
+      const btCollisionObject* b1 = man->getBody1();
+      const bool mesh0 = b0->getUserIndex2() == kMeshTag, mesh1 = b1->getUserIndex2() == kMeshTag;
+      if (mesh0 == mesh1) continue;
+      MeshSlot& ms = *meshes[static_cast<std::size_t>((mesh0 ? b0 : b1)->getUserIndex())];
+      const double sign = mesh0 ? 1.0 : -1.0;  // impulse on the mesh = sign * (impulse on body 0)
+      for (int c = 0; c < man->getNumContacts(); ++c) {
+        const btManifoldPoint& p = man->getContactPoint(c);
+        if (p.m_appliedImpulse == 0.0 && p.m_appliedImpulseLateral1 == 0.0 &&
+            p.m_appliedImpulseLateral2 == 0.0)
+          continue;
+        const Vec3 j = from_bt(p.m_normalWorldOnB * p.m_appliedImpulse +
+                               p.m_lateralFrictionDir1 * p.m_appliedImpulseLateral1 +
+                               p.m_lateralFrictionDir2 * p.m_appliedImpulseLateral2);
+        const Vec3 f = sign * j / h;
+        const Vec3 at = from_bt(mesh0 ? p.getPositionWorldOnA() : p.getPositionWorldOnB());
+        const Vec3 m = (at - ms.origin).cross(f);
+        MeshLoad& L = ms.load;
+        L.force += f;
+        L.moment += m;
+        ++L.contacts;
+        const int tri = mesh0 ? p.m_index0 : p.m_index1;
+        const std::size_t part =
+            (tri >= 0 && static_cast<std::size_t>(tri) < ms.part.size()) ? ms.part[tri] : 0;
+        L.part_force[part] += f;
+        L.part_moment[part] += m;
+      }
+    }
+  }
 };
 
 RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>()) {
@@ -123,6 +193,7 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   m.world = std::make_unique<btDiscreteDynamicsWorld>(m.dispatcher.get(), m.broadphase.get(),
                                                       m.solver.get(), m.config.get());
   m.world->setGravity(to_bt(def.gravity));
+  gCalculateCombinedFrictionCallback = &combined_friction;
   m.world->getSolverInfo().m_numIterations = std::max(1, def.solver_iterations);
 }
 
@@ -132,6 +203,8 @@ RigidWorld::~RigidWorld() {
     if (j->constraint) m.world->removeConstraint(j->constraint.get());
   for (auto& b : m.blocks)
     if (b.alive) m.world->removeRigidBody(b.body.get());
+  for (auto& ms : m.meshes) m.world->removeRigidBody(ms->body.get());
+  m.meshes.clear();
   m.joints.clear();
   m.blocks.clear();
   m.world.reset();
@@ -263,9 +336,17 @@ void RigidWorld::substep() {
     b.applyCentralForce(to_bt(f));
     b.applyTorque(to_bt(t));
   }
+  // Kinematic meshes: pose at the end of the sub-step. stepSimulation's
+  // saveKinematicState turns the displacement into the body's velocity for the solver.
+  for (auto& mp : m.meshes) {
+    MeshSlot& ms = *mp;
+    ms.origin += h * ms.velocity;
+    ms.body->setWorldTransform(btTransform(btQuaternion::getIdentity(), to_bt(ms.origin)));
+  }
   // maxSubSteps = 0: exactly one internal step of h; forces are cleared afterwards.
   m.world->stepSimulation(h, 0, h);
   m.check_joints();
+  m.tally_mesh_loads(h);
   m.time += h;
   ++m.steps;
 }
@@ -350,6 +431,63 @@ double RigidWorld::kinetic_energy() const {
   }
   return e;
 }
+
+int RigidWorld::add_kinematic_mesh(const KinematicMeshDef& d) {
+  Impl& m = *impl_;
+  if (d.triangles.empty()) throw InputError("structure/mesh", "a kinematic mesh needs triangles");
+  if (d.part_count < 1) throw InputError("structure/mesh", "part_count must be >= 1");
+  if (!(d.friction >= 0.0)) throw InputError("structure/friction", "must be >= 0");
+  if (!d.triangle_part.empty() && d.triangle_part.size() != d.triangles.size())
+    throw InputError("structure/mesh", "triangle_part must have one entry per triangle");
+  auto ms = std::make_unique<MeshSlot>();
+  ms->origin = d.position;
+  ms->velocity = d.velocity;
+  ms->friction = d.friction;
+  ms->vertices.reserve(3 * d.vertices.size());
+  for (const Vec3& v : d.vertices) ms->vertices.insert(ms->vertices.end(), {v.x(), v.y(), v.z()});
+  ms->indices.reserve(3 * d.triangles.size());
+  for (const auto& t : d.triangles) {
+    for (std::uint32_t i : t) {
+      if (i >= d.vertices.size())
+        throw InputError("structure/mesh", "triangle vertex index out of range");
+      ms->indices.push_back(static_cast<int>(i));
+    }
+  }
+  ms->part = d.triangle_part;
+  for (std::uint16_t p : ms->part)
+    if (p >= d.part_count) throw InputError("structure/mesh", "triangle part out of range");
+  btIndexedMesh im;
+  im.m_numTriangles = static_cast<int>(d.triangles.size());
+  im.m_triangleIndexBase = reinterpret_cast<const unsigned char*>(ms->indices.data());
+  im.m_triangleIndexStride = 3 * sizeof(int);
+  im.m_numVertices = static_cast<int>(d.vertices.size());
+  im.m_vertexBase = reinterpret_cast<const unsigned char*>(ms->vertices.data());
+  im.m_vertexStride = 3 * sizeof(btScalar);
+  im.m_vertexType = PHY_DOUBLE;
+  im.m_indexType = PHY_INTEGER;
+  ms->array = std::make_unique<btTriangleIndexVertexArray>();
+  ms->array->addIndexedMesh(im, PHY_INTEGER);
+  ms->shape = std::make_unique<btBvhTriangleMeshShape>(ms->array.get(), true);
+  ms->shape->setMargin(0.0);
+  btRigidBody::btRigidBodyConstructionInfo info(0.0, nullptr, ms->shape.get());
+  info.m_startWorldTransform = btTransform(btQuaternion::getIdentity(), to_bt(d.position));
+  info.m_friction = d.friction;
+  info.m_restitution = 0.0;
+  ms->body = std::make_unique<btRigidBody>(info);
+  ms->body->setCollisionFlags(ms->body->getCollisionFlags() | btCollisionObject::CF_KINEMATIC_OBJECT);
+  ms->body->setActivationState(DISABLE_DEACTIVATION);
+  ms->body->setUserIndex(static_cast<int>(m.meshes.size()));
+  ms->body->setUserIndex2(kMeshTag);
+  ms->load.part_force.assign(d.part_count, Vec3::Zero());
+  ms->load.part_moment.assign(d.part_count, Vec3::Zero());
+  m.world->addRigidBody(ms->body.get());
+  m.meshes.push_back(std::move(ms));
+  return static_cast<int>(m.meshes.size() - 1);
+}
+
+std::size_t RigidWorld::kinematic_mesh_count() const { return impl_->meshes.size(); }
+Vec3 RigidWorld::mesh_position(int k) const { return impl_->meshes.at(k)->origin; }
+const MeshLoad& RigidWorld::mesh_load(int k) const { return impl_->meshes.at(k)->load; }
 
 JointId RigidWorld::add_freeze_joint(const FreezeJointDef& d) {
   Impl& m = *impl_;

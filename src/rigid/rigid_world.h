@@ -4,17 +4,20 @@
 //
 // Step (one call of step(), sub-stepped at def.dt):
 //   1. water load (box_water.h (4)-(6)) and the caller's external forces/impulses are
-//      applied to every dynamic block;
+//      applied to every dynamic block; kinematic meshes move to their pose at the end
+//      of the sub-step (Bullet takes their velocity from that displacement);
 //   2. Bullet integrates one fixed step (semi-implicit Euler + sequential-impulse
 //      contacts, friction and joints);
 //   3. every intact freeze joint reads the force it applied (btJointFeedback, impulse/dt),
 //      splits it into normal (tension > 0) and shear parts relative to its normal and
-//      breaks when  tension/A > sigma_t  or  |shear|/A > tau_s.
+//      breaks when  tension/A > sigma_t  or  |shear|/A > tau_s;
+//   4. the contact impulses on every kinematic mesh are summed into its MeshLoad.
 // Units: SI (m, kg, s, N, Pa).
 #pragma once
 
 #include "bonded/types.h"
 
+#include <array>
 #include <cstdint>
 #include <memory>
 #include <vector>
@@ -95,6 +98,30 @@ struct FreezeJointDef {
   double area = 1.0;
 };
 
+/// A kinematic triangle mesh (the structure): it moves at a prescribed constant
+/// velocity, pushes blocks and is never pushed back. Plain arrays, so that the rigid
+/// module needs no mesh library; the caller passes a hs::mesh::TriMesh's arrays.
+struct KinematicMeshDef {
+  std::vector<Vec3> vertices;                            ///< in the mesh frame, m
+  std::vector<std::array<std::uint32_t, 3>> triangles;   ///< CCW seen from outside
+  std::vector<std::uint16_t> triangle_part;              ///< part of each triangle; empty = all 0
+  std::size_t part_count = 1;
+  Vec3 position = Vec3::Zero();  ///< world position of the mesh frame origin at t = 0, m
+  Vec3 velocity = Vec3::Zero();  ///< m/s
+  /// Block–structure Coulomb coefficient, used as is for every block (not combined
+  /// with the block's own coefficient).
+  double friction = 0.1;
+};
+
+/// Load exerted BY the blocks ON a kinematic mesh during the last sub-step: the contact
+/// impulses (normal and friction) that Bullet's solver applied, divided by the sub-step.
+struct MeshLoad {
+  Vec3 force = Vec3::Zero();              ///< N
+  Vec3 moment = Vec3::Zero();             ///< N m, about the mesh frame origin
+  std::vector<Vec3> part_force, part_moment;
+  std::size_t contacts = 0;               ///< contact points that carried an impulse
+};
+
 /// Last measured load of a joint (force on b from the joint, split along the normal).
 struct JointLoad {
   double tension = 0.0;  ///< N, > 0 pulls b towards a
@@ -150,6 +177,15 @@ class RigidWorld {
 
   /// Sum of 1/2 m v^2 + 1/2 w.I w over dynamic blocks, J.
   double kinetic_energy() const;
+
+  /// Adds a kinematic mesh (see KinematicMeshDef); returns its index. Throws
+  /// hs::InputError for an empty mesh or an index out of range.
+  int add_kinematic_mesh(const KinematicMeshDef& def);
+  std::size_t kinematic_mesh_count() const;
+  /// World position of mesh k's frame origin now.
+  Vec3 mesh_position(int k) const;
+  /// Load of the blocks on mesh k during the last sub-step.
+  const MeshLoad& mesh_load(int k) const;
 
   JointId add_freeze_joint(const FreezeJointDef& j);
   void remove_joint(JointId id);
