@@ -1,6 +1,7 @@
 #include "app/run.h"
 
 #include "analysis/iso19906.h"
+#include "app/hybrid_setup.h"
 #include "analysis/pile_height.h"
 #include "bonded/engine.h"
 #include "common/error.h"
@@ -219,6 +220,9 @@ struct AnalysisOut {
   analysis::IsoResult iso;
   double dem_peak = 0.0;      ///< N, peak horizontal force on the structure (output-row means)
   double max_pile = 0.0;      ///< m
+  bool has_hybrid = false;
+  bridge::HybridReport hybrid;
+  std::string conversion;
 };
 
 void write_analysis(const std::string& path, const AnalysisOut& a) {
@@ -245,6 +249,27 @@ void write_analysis(const std::string& path, const AnalysisOut& a) {
     h5_attr(i.id, "dem_over_iso", a.iso.F_H > 0 ? a.dem_peak / a.iso.F_H : 0.0);
     h5_attr(i.id, "description", std::string("ISO 19906 (Croasdale & Cammaert) cone load for the scene's ice, "
                                              "rubble_height = max simulated pile height; forces in N"));
+  }
+  if (a.has_hybrid) {
+    H5 h(H5Gcreate2(g.id, "hybrid", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /analysis/hybrid");
+    const auto& r = a.hybrid;
+    h5_attr(h.id, "conversion", a.conversion);
+    h5_attr(h.id, "conversions", static_cast<double>(r.conversions));
+    h5_attr(h.id, "particles_created", static_cast<double>(r.particles_created));
+    h5_attr(h.id, "bonds_created", static_cast<double>(r.bonds_created));
+    h5_attr(h.id, "sites_dropped", static_cast<double>(r.sites_dropped));
+    h5_attr(h.id, "peak_particles", static_cast<double>(r.peak_particles));
+    h5_attr(h.id, "blocks_initial", static_cast<double>(r.blocks_initial));
+    h5_attr(h.id, "blocks_final", static_cast<double>(r.blocks_now));
+    h5_attr(h.id, "rigid_steps", static_cast<double>(r.rigid_steps));
+    h5_attr(h.id, "rigid_dt", r.rigid_dt);
+    h5_attr(h.id, "rigid_dt_limit", r.rigid_dt_limit);
+    h5_attr(h.id, "seconds_rigid", r.seconds_rigid);
+    h5_attr(h.id, "seconds_bonded", r.seconds_bonded);
+    h5_attr(h.id, "seconds_bridge", r.seconds_bridge);
+    h5_attr(h.id, "conversion_kinetic_energy_change", r.kinetic_energy_change);
+    h5_attr(h.id, "description", std::string("rigid/particle hybrid: conversions, particles created, peak particle "
+                                             "count, wall time per part (s, rank 0), rigid step (s)"));
   }
   h5check(H5Fflush(f.id, H5F_SCOPE_GLOBAL), "flush " + path);
 }
@@ -303,6 +328,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const auto t_setup = Clock::now();
   scene::Built b = scene::build_engine(s, true);
   bonded::Engine& e = *b.engine;
+  const HybridSetup hsetup = hybrid_setup(s);
+  for (const auto& w : hsetup.warnings) std::fprintf(progress, "warning: %s\n", w.c_str());
+  bridge::HybridSystem hyb(e, hsetup.def, hsetup.blocks, hsetup.joints);
   if (comm.parallel()) {  // every rank built the whole scene; each keeps its share
     bonded::ParallelDef pd;
     pd.grid = s.parallel.grid;
@@ -369,9 +397,20 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const int id_broken = file.add_int_series("/series/bonds_broken", 1, "1", "bonds broken since the start");
   const int id_bonds = file.add_int_series("/series/bonds", 1, "1", "intact bonds");
   const int id_particles = file.add_int_series("/series/particles", 1, "1", "particles");
+  int id_blk_force = -1, id_blk_ke = -1, id_blk_count = -1, id_blk_conv = -1, id_blk_joints = -1;
+  if (hyb.has_rigid()) {
+    if (has_st)
+      id_blk_force = file.add_series("/series/blocks/structure_force", 3, "N",
+                                     "the rigid blocks' share of /series/force (contact impulses on the structure "
+                                     "per rigid step), mean over the output interval");
+    id_blk_ke = file.add_series("/series/blocks/kinetic_energy", 1, "J", "kinetic energy of the rigid blocks");
+    id_blk_count = file.add_int_series("/series/blocks/count", 1, "1", "rigid blocks (not yet converted)");
+    id_blk_conv = file.add_int_series("/series/blocks/conversions", 1, "1", "blocks converted into particles so far");
+    id_blk_joints = file.add_int_series("/series/blocks/joints_broken", 1, "1", "freeze joints between blocks broken");
+  }
 
   std::vector<Vec3> force_sum(nwalls, Vec3::Zero());
-  Vec3 st_force_sum = Vec3::Zero(), st_moment_sum = Vec3::Zero();
+  Vec3 st_force_sum = Vec3::Zero(), st_moment_sum = Vec3::Zero(), blk_force_sum = Vec3::Zero();
   std::vector<Vec3> pf_sum(nparts, Vec3::Zero()), pm_sum(nparts, Vec3::Zero());
   std::uint64_t force_count = 0;
   std::vector<double> peak(nwalls, 0.0), peak_time(nwalls, 0.0);
@@ -435,6 +474,21 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     } else {
       file.append(id_force, total.data());
     }
+    if (hyb.has_rigid()) {
+      if (id_blk_force >= 0) {
+        const Vec3 bf = force_count ? Vec3(blk_force_sum * inv) : hyb.structure_force();
+        file.append(id_blk_force, bf.data());
+        blk_force_sum.setZero();
+      }
+      const double ke = hyb.rigid_kinetic_energy();
+      const std::int64_t nblk = static_cast<std::int64_t>(hyb.world()->block_count());
+      const std::int64_t nconv = static_cast<std::int64_t>(hyb.report().conversions);
+      const std::int64_t nj = static_cast<std::int64_t>(hyb.world()->broken_joint_count());
+      file.append(id_blk_ke, &ke);
+      file.append(id_blk_count, &nblk);
+      file.append(id_blk_conv, &nconv);
+      file.append(id_blk_joints, &nj);
+    }
     force_count = 0;
     const auto E = e.energy();
     const double v[] = {E.kinetic_translational + E.kinetic_rotational,
@@ -480,6 +534,19 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
                "(setup %.1f s)\n",
                s.name.c_str(), b.particles, b.bonds, nwalls, e.dt(), static_cast<unsigned long long>(sc.total_steps),
                s.time.duration, setup_s);
+  if (hyb.has_rigid()) {
+    const auto& r = hyb.report();
+    std::fprintf(progress,
+                 "hybridsim: %zu rigid blocks (%zu freeze joints), conversion \"%s\"; rigid step %.4g s = %llu DEM "
+                 "steps (stability limit %.4g s)\n",
+                 r.blocks_initial, hsetup.joints.size(), bridge::to_string(hsetup.def.mode), r.rigid_dt,
+                 static_cast<unsigned long long>(r.steps_per_rigid_step), r.rigid_dt_limit);
+    if (hsetup.ice_joints_skipped)
+      std::fprintf(progress,
+                   "warning: %zu ridge freeze joints to the ice sheet are not modelled yet (block-particle freeze "
+                   "bonds); those blocks start loose under the ice\n",
+                   hsetup.ice_joints_skipped);
+  }
   if (comm.parallel()) {
     const auto& g = e.decomposition().dims();
     std::fprintf(progress, "hybridsim: %d MPI ranks, boxes %d x %d x %d, load balance every %llu steps by %s\n",
@@ -501,7 +568,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     if (sc.snapshot_every) write_snapshot();
     file.flush();
     for (std::uint64_t k = 1; k <= sc.total_steps; ++k) {
-      e.step();
+      hyb.step();
       for (std::size_t w = 0; w < nwalls; ++w) {
         const Vec3& f = e.wall_force(static_cast<int>(w));
         force_sum[w] += f;
@@ -513,15 +580,20 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       }
       if (has_st) {
         const auto& L = e.mesh_wall_load(b.structure);
-        st_force_sum += L.force;
-        st_moment_sum += L.moment;
+        // Particles' load (this DEM step) + blocks' load (the current rigid step's mean).
+        const Vec3 f = L.force + hyb.structure_force();
+        st_force_sum += f;
+        st_moment_sum += L.moment + hyb.structure_moment();
+        blk_force_sum += hyb.structure_force();
+        const auto& bpf = hyb.structure_part_force();
+        const auto& bpm = hyb.structure_part_moment();
         for (std::size_t q = 0; q < nparts; ++q) {
-          pf_sum[q] += L.part_force[q];
-          pm_sum[q] += L.part_moment[q];
+          pf_sum[q] += L.part_force[q] + (q < bpf.size() ? bpf[q] : Vec3::Zero());
+          pm_sum[q] += L.part_moment[q] + (q < bpm.size() ? bpm[q] : Vec3::Zero());
         }
-        st_force_total += L.force;
+        st_force_total += f;
         ++st_force_n;
-        const double fh = std::hypot(L.force.x(), L.force.y());
+        const double fh = std::hypot(f.x(), f.y());
         if (fh > st_peak_step) {
           st_peak_step = fh;
           st_peak_step_time = e.time();
@@ -581,6 +653,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   an.pieces = find_pieces(e, comm);
   an.dem_peak = st_peak_h;
   an.max_pile = max_pile;
+  an.has_hybrid = hyb.has_rigid();
+  an.hybrid = hyb.report();
+  an.conversion = bridge::to_string(hsetup.def.mode);
   const double h_iso = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
   an.L_c = characteristic_length(s.material.youngs_modulus, h_iso, s.water.density, s.gravity.norm(),
                                  s.material.poisson_ratio);
@@ -620,6 +695,16 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
         << sci(st_peak_step, 4) << " N at t = " << sci(st_peak_step_time, 4) << " s); mean force ("
         << sci(mean.x(), 4) << ", " << sci(mean.y(), 4) << ", " << sci(mean.z(), 4) << ") N\n";
     out << "  max pile height " << sci(max_pile, 4) << " m at t = " << sci(max_pile_time, 4) << " s\n";
+  }
+  if (hyb.has_rigid()) {
+    const auto& r = hyb.report();
+    out << "  blocks (" << bridge::to_string(hsetup.def.mode) << "): " << r.blocks_initial << " at the start, "
+        << r.blocks_now << " rigid at the end; " << r.conversions << " conversions made " << r.particles_created
+        << " particles (" << r.bonds_created << " bonds, " << r.sites_dropped << " overlapping sites dropped); peak "
+        << r.peak_particles << " particles; " << r.rigid_steps << " rigid steps of " << sci(r.rigid_dt, 4)
+        << " s; " << hyb.world()->broken_joint_count() << " freeze joints broken\n";
+    out << "  time: bonded " << sci(r.seconds_bonded, 4) << " s, rigid " << sci(r.seconds_rigid, 4)
+        << " s, bridge " << sci(r.seconds_bridge, 4) << " s\n";
   }
   {
     std::size_t multi = 0;

@@ -24,7 +24,7 @@ namespace {
 const std::map<std::string, std::vector<std::string>>& schema_keys() {
   static const std::map<std::string, std::vector<std::string>> k = {
       {"", {"name", "description", "output", "time", "material", "bonds", "water", "gravity", "ice", "walls",
-            "structure", "analysis", "stability", "parallel"}},
+            "structure", "analysis", "stability", "parallel", "blocks"}},
       {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval"}},
       {"/material",
        {"density", "youngs_modulus", "poisson_ratio", "particle_diameter", "restitution", "friction",
@@ -45,6 +45,12 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
         "friction_ice_ice", "keel_depth", "rubble_height"}},
       {"/stability", {"max_speed", "max_overlap_ratio"}},
       {"/parallel", {"grid", "balance_interval", "cost"}},
+      {"/blocks",
+       {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "list", "density", "friction", "linear_drag",
+        "drag_coefficient", "solver_iterations", "rigid_dt", "conversion", "region", "safety_factor",
+        "flexural_strength"}},
+      {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity"}},
+      {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
   };
   return k;
 }
@@ -608,6 +614,77 @@ Scene parse_scene(const json& j, const std::string& base_dir) {
         o.number("balance_interval", static_cast<double>(p.balance_interval), Range::non_negative(), "steps",
                  "steps between load-balance checks, e.g. 500, or 0 to keep the first cuts"));
     p.cost = o.choice("cost", p.cost, {"work", "time"});
+  }
+
+  // blocks (rigid ice blocks and their conversion)
+  if (root.has("blocks")) {
+    const Obj o(root.raw("blocks"), "/blocks");
+    auto& b = s.blocks;
+    s.has_blocks = true;
+    b.ridge_file = o.string("ridge_file", "", false, "an HDF5 ridge file written by `hybridsim ridge`");
+    if (!b.ridge_file.empty()) {
+      const std::filesystem::path fp(b.ridge_file);
+      b.ridge_file_path = fp.is_absolute() || base_dir.empty() ? fp.string() : (std::filesystem::path(base_dir) / fp).string();
+    }
+    b.offset = o.vec<3>("offset", b.offset, "m", "shift of the ridge file's blocks, e.g. [30, 0, 0]");
+    for (const char* key : {"keep_x", "keep_y"}) {
+      const Eigen::Vector2d r = o.vec<2>(key, Eigen::Vector2d(-1e30, 1e30), "m",
+                                         "[min, max] of the block centres kept from the ridge file (after offset)");
+      if (!(r[0] < r[1])) throw InputError(o.at(key), "min must be < max; e.g. [-10, 10]");
+      (std::string(key) == "keep_x" ? b.keep_x : b.keep_y) = {r[0], r[1]};
+    }
+    b.keep_sail = o.boolean("keep_sail", b.keep_sail);
+    if (o.has("list")) {
+      const json& arr = o.raw("list");
+      if (!arr.is_array())
+        throw InputError("/blocks/list", "expected an array of blocks [{\"half_extents\": [..], \"position\": [..]}, ...]");
+      for (std::size_t k = 0; k < arr.size(); ++k) {
+        const Obj bo(arr[k], "/blocks/list/" + std::to_string(k));
+        BlockItemDef it;
+        it.half_extents = bo.vec<3>("half_extents", it.half_extents, "m", "half sizes along the block's axes");
+        for (int a = 0; a < 3; ++a)
+          if (!(it.half_extents[a] > 0.0))
+            throw InputError(bo.at("half_extents") + "/" + std::to_string(a), "must be > 0 (m)");
+        it.position = bo.vec<3>("position", it.position, "m", "centre of the block");
+        const Eigen::Vector4d q = bo.vec<4>("orientation", Eigen::Vector4d(1, 0, 0, 0), "",
+                                            "unit quaternion [w, x, y, z], body to world");
+        if (!(q.norm() > 1e-12)) throw InputError(bo.at("orientation"), "must be a non-zero quaternion [w, x, y, z]");
+        it.orientation = Quat(q[0], q[1], q[2], q[3]).normalized();
+        it.velocity = bo.vec<3>("velocity", it.velocity, "m/s", "initial velocity");
+        it.angular_velocity = bo.vec<3>("angular_velocity", it.angular_velocity, "rad/s", "initial angular velocity");
+        b.list.push_back(it);
+      }
+    }
+    if (b.ridge_file.empty() && b.list.empty())
+      throw InputError("/blocks", "no blocks: give \"ridge_file\" (from `hybridsim ridge`) or a \"list\", or remove "
+                                  "the \"blocks\" section");
+    b.density = o.number("density", s.material.density, Range::positive(), "kg/m^3", "ice density, e.g. 920");
+    b.friction = o.number("friction", s.material.friction, Range::non_negative(), "", "ice-ice Coulomb coefficient");
+    b.linear_drag = o.number("linear_drag", b.linear_drag, Range::non_negative(), "Pa s/m",
+                             "linear drag per wetted face area (heave damper), e.g. 1000");
+    b.drag_coefficient = o.number("drag_coefficient", b.drag_coefficient, Range::non_negative(), "", "e.g. 1.0");
+    b.solver_iterations = static_cast<int>(o.number("solver_iterations", b.solver_iterations, {1.0, 1000.0}, "",
+                                                    "Bullet sequential-impulse iterations, e.g. 20"));
+    b.rigid_dt = o.number("rigid_dt", b.rigid_dt, Range::non_negative(), "s",
+                          "rigid step; 0 = the largest the stability rule allows (docs/bridge.md)");
+    b.conversion = o.choice("conversion", b.conversion, {"hybrid", "all_at_start", "never"});
+    b.safety_factor = o.number("safety_factor", b.safety_factor, Range::positive(), "",
+                               "a block converts when its stress utilisation x safety_factor >= 1; > 1 converts earlier");
+    b.flexural_strength = o.number("flexural_strength", s.analysis.flexural_strength, Range::positive(), "Pa",
+                                   "flexural strength of a block, e.g. 0.5e6");
+    if (o.has("region")) {
+      const Obj r(o.raw("region"), "/blocks/region");
+      auto& g = b.region;
+      g.shape = r.choice("shape", g.shape, {"cylinder", "box"});
+      g.offset = r.vec<3>("offset", g.offset, "m", "centre relative to the structure's mesh origin");
+      g.radius = r.number("radius", g.radius, Range::non_negative(), "m", "0 = structure radius + 5 m");
+      g.z_min = r.number("z_min", g.z_min, Range::any(), "m", "bottom of the cylinder, relative to the offset");
+      g.z_max = r.number("z_max", g.z_max, Range::any(), "m", "top of the cylinder, relative to the offset");
+      if (!(g.z_min < g.z_max)) throw InputError("/blocks/region/z_max", "must be > z_min");
+      g.half_extents = r.vec<3>("half_extents", g.half_extents, "m", "half sizes of the box region");
+      if (g.shape == "box" && !(g.half_extents.minCoeff() > 0.0))
+        throw InputError("/blocks/region/half_extents", "a box region needs three half extents > 0, e.g. [15, 15, 10]");
+    }
   }
   return s;
 }

@@ -122,6 +122,46 @@ struct ParallelSceneDef {
   std::string cost = "work";             ///< "work" (deterministic) or "time" (measured)
 };
 
+/// One block given in the scene itself (tests, small scenes).
+struct BlockItemDef {
+  Vec3 half_extents{0.5, 0.5, 0.5};  ///< m
+  Vec3 position = Vec3::Zero();      ///< centre, m
+  Quat orientation = Quat::Identity();
+  Vec3 velocity = Vec3::Zero();      ///< m/s
+  Vec3 angular_velocity = Vec3::Zero();  ///< rad/s, world
+};
+
+/// Where blocks may turn into particles: a region that moves with the structure
+/// (docs/bridge.md, "Conversion region").
+struct ConversionRegionDef {
+  std::string shape = "cylinder";    ///< "cylinder" (vertical axis) or "box"
+  Vec3 offset = Vec3::Zero();        ///< centre relative to the structure's mesh origin, m
+  double radius = 0.0;               ///< cylinder radius, m; 0 = structure radius + 5 m
+  double z_min = -1e30, z_max = 1e30;  ///< cylinder z range relative to the offset, m
+  Vec3 half_extents = Vec3::Zero();  ///< box, m
+};
+
+/// Rigid ice blocks (Bullet): a ridge file from `hybridsim ridge` and/or a list, and how
+/// they turn into bonded particles near the structure (docs/bridge.md).
+struct BlocksDef {
+  std::string ridge_file;            ///< as written in the scene
+  std::string ridge_file_path;       ///< resolved against the scene's directory
+  Vec3 offset = Vec3::Zero();        ///< added to the ridge file's positions, m
+  std::array<double, 2> keep_x{-1e30, 1e30}, keep_y{-1e30, 1e30};  ///< ridge blocks kept (centre), m
+  bool keep_sail = true;             ///< keep the ridge file's sail blocks
+  std::vector<BlockItemDef> list;
+  double density = 0.0;              ///< kg/m^3; 0 = material.density
+  double friction = -1.0;            ///< ice-ice; < 0 = material.friction
+  double linear_drag = 1000.0;       ///< Pa s/m on wetted faces (rigid/linear_drag)
+  double drag_coefficient = 1.0;     ///< C_d on leading wetted faces
+  int solver_iterations = 20;
+  double rigid_dt = 0.0;             ///< s; 0 = the largest step the stability rule allows
+  std::string conversion = "hybrid"; ///< "hybrid", "all_at_start" or "never"
+  ConversionRegionDef region;
+  double safety_factor = 1.0;        ///< converts when utilisation x safety_factor >= 1
+  double flexural_strength = 0.0;    ///< Pa; 0 = analysis.flexural_strength
+};
+
 struct Scene {
   std::string name;
   std::string description;
@@ -139,6 +179,8 @@ struct Scene {
   AnalysisDef analysis;
   StabilityDef stability;
   ParallelSceneDef parallel;
+  bool has_blocks = false;
+  BlocksDef blocks;
 
   nlohmann::json json;             ///< the effective scene (after --set overrides)
   std::vector<std::string> warnings;  ///< "path: message", for the user; not errors

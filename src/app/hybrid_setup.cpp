@@ -1,0 +1,91 @@
+#include "app/hybrid_setup.h"
+
+#include "common/error.h"
+#include "rigid/ridge_io.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace hs::app {
+
+HybridSetup hybrid_setup(const scene::Scene& s) {
+  HybridSetup out;
+  bridge::HybridDef& d = out.def;
+  const auto& b = s.blocks;
+  d.mode = bridge::conversion_mode_from_string(b.conversion);
+  d.rigid_dt = b.rigid_dt;
+  d.ice.diameter = s.material.particle_diameter;
+  d.ice.buoyancy = bonded::BuoyancyModel::Column;
+  d.block_density = b.density > 0.0 ? b.density : s.material.density;
+  d.block_friction = b.friction >= 0.0 ? b.friction : s.material.friction;
+  rigid::RigidWorldDef& w = d.world;
+  w.gravity = s.gravity;
+  w.water = s.water.enabled;
+  w.water_level = s.water.level;
+  w.water_density = s.water.density;
+  w.water_current = s.water.current;
+  w.linear_drag = b.linear_drag;
+  w.quadratic_drag_cd = b.drag_coefficient;
+  w.friction = d.block_friction;
+  w.solver_iterations = b.solver_iterations;
+  w.freeze_bond_strength = s.bonds.freeze_tensile_strength;
+  w.freeze_bond_shear_strength = s.bonds.freeze_shear_strength;
+  if (!s.has_blocks) return out;
+
+  if (s.has_structure) {
+    const mesh::TriMesh m = scene::structure_mesh(s);
+    d.has_structure = true;
+    d.structure.vertices = m.vertices;
+    d.structure.triangles = m.triangles;
+    d.structure.triangle_part = m.triangle_part;
+    d.structure.part_count = std::max<std::size_t>(1, m.part_names.size());
+    d.structure.position = s.structure.position;
+    d.structure.velocity = s.structure.velocity;
+    d.structure.friction = s.structure.friction;
+  }
+
+  auto add = [&](const Vec3& half, const Vec3& x, const Quat& q, const Vec3& v, const Vec3& omega) {
+    bridge::BlockInit bi;
+    bi.def.half_extents = half;
+    bi.def.position = x;
+    bi.def.orientation = q;
+    bi.def.velocity = v;
+    bi.def.angular_velocity = omega;
+    bi.def.density = d.block_density;
+    out.blocks.push_back(bi);
+  };
+  if (!b.ridge_file_path.empty()) {
+    const rigid::RidgeResult r = rigid::load_ridge(b.ridge_file_path);
+    out.ridge_blocks_in_file = r.blocks.size();
+    std::vector<long> kept(r.blocks.size(), -1);  // ridge row -> index in out.blocks
+    for (std::size_t k = 0; k < r.blocks.size(); ++k) {
+      const auto& rb = r.blocks[k];
+      const Vec3 x = rb.position + b.offset;
+      if (x.x() < b.keep_x[0] || x.x() > b.keep_x[1] || x.y() < b.keep_y[0] || x.y() > b.keep_y[1]) continue;
+      if (rb.part == 1 && !b.keep_sail) continue;
+      kept[k] = static_cast<long>(out.blocks.size());
+      add(rb.half_extents, x, rb.orientation, Vec3::Zero(), Vec3::Zero());
+    }
+    for (const auto& j : r.joints) {
+      if (j.b < 0) {
+        out.ice_joints_skipped += kept[j.a] >= 0;
+        continue;
+      }
+      if (kept[j.a] < 0 || kept[j.b] < 0) continue;
+      out.joints.push_back({static_cast<std::size_t>(kept[j.a]), static_cast<std::size_t>(kept[j.b]),
+                            j.anchor + b.offset, j.normal, j.area});
+    }
+    if (s.has_ice && std::abs(r.def.level_ice_thickness - s.ice.thickness) > 1e-9) {
+      std::ostringstream m;
+      m << "/blocks/ridge_file: the ridge was generated under " << r.def.level_ice_thickness
+        << " m level ice but the scene's ice is " << s.ice.thickness << " m thick";
+      out.warnings.push_back(m.str());
+    }
+  }
+  for (const auto& it : b.list) add(it.half_extents, it.position, it.orientation, it.velocity, it.angular_velocity);
+  if (out.blocks.empty())
+    throw InputError("/blocks/keep_x", "no ridge block lies inside keep_x / keep_y; widen them or check offset");
+  return out;
+}
+
+}  // namespace hs::app

@@ -1,0 +1,26 @@
+// From a scene to the hybrid system's inputs: the blocks (ridge file and/or list), the
+// rigid world's settings, the structure's mesh for block contact, the conversion mode.
+#pragma once
+
+#include "bridge/hybrid.h"
+#include "scene/scene.h"
+
+#include <string>
+#include <vector>
+
+namespace hs::app {
+
+struct HybridSetup {
+  bridge::HybridDef def;
+  std::vector<bridge::BlockInit> blocks;
+  std::vector<bridge::JointInit> joints;   ///< ridge joints between kept blocks
+  std::size_t ridge_blocks_in_file = 0;     ///< before keep_x / keep_y / keep_sail
+  std::size_t ice_joints_skipped = 0;       ///< ridge joints to the ice sheet (not modelled yet)
+  std::vector<std::string> warnings;
+};
+
+/// Reads the scene's blocks (InputError at /blocks/ridge_file for a missing or bad file).
+/// A scene without a "blocks" section gives an empty block list (no rigid world).
+HybridSetup hybrid_setup(const scene::Scene& s);
+
+}  // namespace hs::app

@@ -1,0 +1,137 @@
+#include "bridge/hybrid.h"
+
+#include "common/error.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+
+namespace hs::bridge {
+
+namespace {
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
+}  // namespace
+
+ConversionMode conversion_mode_from_string(const std::string& s, const std::string& path) {
+  if (s == "hybrid") return ConversionMode::Hybrid;
+  if (s == "all_at_start") return ConversionMode::AllAtStart;
+  if (s == "never") return ConversionMode::Never;
+  throw InputError(path, "\"" + s + "\" is not a conversion mode; use \"hybrid\", \"all_at_start\" or \"never\"");
+}
+
+const char* to_string(ConversionMode m) {
+  switch (m) {
+    case ConversionMode::Hybrid: return "hybrid";
+    case ConversionMode::AllAtStart: return "all_at_start";
+    case ConversionMode::Never: return "never";
+  }
+  return "?";
+}
+
+double max_rigid_step(const RigidStepInputs& in) {
+  if (!(in.min_block_mass > 0.0) || !(in.max_face_area > 0.0) || !(in.particle_diameter > 0.0) ||
+      !(in.contact_stiffness > 0.0) || !(in.safety > 0.0))
+    throw std::invalid_argument("max_rigid_step: every input must be > 0");
+  const double D = in.particle_diameter;
+  const double n_max = std::max(1.0, in.max_face_area / (0.5 * std::sqrt(3.0) * D * D));
+  return in.safety * 2.0 * std::sqrt(in.min_block_mass / (n_max * in.contact_stiffness));
+}
+
+struct HybridSystem::Impl {
+  HybridDef def;
+  int mesh = -1;
+  std::uint64_t since_rigid = 0;  ///< DEM steps since the last rigid step
+  ImpulseCoupler coupler;
+  std::vector<Vec3> no_parts;
+};
+
+HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const std::vector<BlockInit>& blocks,
+                           const std::vector<JointInit>& joints)
+    : impl_(std::make_unique<Impl>()), engine_(engine) {
+  Impl& m = *impl_;
+  m.def = def;
+  report_.blocks_initial = blocks.size();
+  report_.peak_particles = static_cast<std::int64_t>(engine.particles().owned());
+  if (blocks.empty()) return;  // no Bullet world
+
+  // ---- the rigid step: the stability rule, then a whole number of DEM steps ----
+  RigidStepInputs rs;
+  rs.min_block_mass = INFINITY;
+  for (const auto& b : blocks) {
+    const Vec3& h = b.def.half_extents;
+    rs.min_block_mass = std::min(rs.min_block_mass, b.def.density * 8.0 * h.prod());
+    rs.max_face_area = std::max({rs.max_face_area, 4.0 * h.x() * h.y(), 4.0 * h.y() * h.z(), 4.0 * h.x() * h.z()});
+  }
+  rs.particle_diameter = def.ice.diameter;
+  const auto& ed = engine.def();
+  rs.contact_stiffness = ed.contact_model == bonded::ContactModel::LinearSpringDashpot
+                             ? ed.contact.kn
+                             : kPi * ed.youngs_modulus * def.ice.diameter / 12.0;  // Eq. 1 as the scale
+  rs.safety = def.rigid_dt_safety;
+  report_.rigid_dt_limit = max_rigid_step(rs);
+  const double dt = engine.dt();
+  if (def.rigid_dt > report_.rigid_dt_limit * (1.0 + 1e-12)) {
+    std::ostringstream msg;
+    msg << "rigid step " << def.rigid_dt << " s exceeds the stability limit " << report_.rigid_dt_limit
+        << " s (lightest block " << rs.min_block_mass << " kg pressed by up to "
+        << std::lround(rs.max_face_area / (0.5 * std::sqrt(3.0) * rs.particle_diameter * rs.particle_diameter))
+        << " particle contacts of stiffness " << rs.contact_stiffness
+        << " N/m; docs/bridge.md, \"Multi-rate stepping\"); set rigid_dt <= " << report_.rigid_dt_limit
+        << " or 0 to use the limit";
+    throw InputError("/blocks/rigid_dt", msg.str());
+  }
+  const double h_wanted = def.rigid_dt > 0.0 ? def.rigid_dt : report_.rigid_dt_limit;
+  const auto k = static_cast<std::uint64_t>(std::max(1.0, std::floor(h_wanted / dt + 1e-9)));
+  report_.steps_per_rigid_step = k;
+  report_.rigid_dt = static_cast<double>(k) * dt;
+
+  rigid::RigidWorldDef wd = def.world;
+  wd.dt = report_.rigid_dt;
+  world_ = std::make_unique<rigid::RigidWorld>(wd);
+  if (def.has_structure) m.mesh = world_->add_kinematic_mesh(def.structure);
+  std::vector<rigid::BlockId> ids;
+  ids.reserve(blocks.size());
+  for (const auto& b : blocks) ids.push_back(world_->add_block(b.def));
+  for (const auto& j : joints)
+    world_->add_freeze_joint(rigid::FreezeJointDef{ids.at(j.a), ids.at(j.b), j.anchor, j.normal, j.area});
+  report_.blocks_now = world_->block_count();
+  m.coupler.reset(world_->blocks());
+}
+
+HybridSystem::~HybridSystem() = default;
+
+void HybridSystem::step() {
+  Impl& m = *impl_;
+  const auto t0 = Clock::now();
+  engine_.step();
+  report_.seconds_bonded += seconds_since(t0);
+  if (!world_) return;
+  if (++m.since_rigid < report_.steps_per_rigid_step) return;
+  m.since_rigid = 0;
+  const auto t1 = Clock::now();
+  m.coupler.sum_and_apply(engine_.comm(), *world_);
+  report_.seconds_bridge += seconds_since(t1);
+  const auto t2 = Clock::now();
+  world_->substep();
+  ++report_.rigid_steps;
+  report_.seconds_rigid += seconds_since(t2);
+  report_.blocks_now = world_->block_count();
+}
+
+Vec3 HybridSystem::structure_force() const {
+  return world_ && impl_->mesh >= 0 ? world_->mesh_load(impl_->mesh).force : Vec3::Zero();
+}
+Vec3 HybridSystem::structure_moment() const {
+  return world_ && impl_->mesh >= 0 ? world_->mesh_load(impl_->mesh).moment : Vec3::Zero();
+}
+const std::vector<Vec3>& HybridSystem::structure_part_force() const {
+  return world_ && impl_->mesh >= 0 ? world_->mesh_load(impl_->mesh).part_force : impl_->no_parts;
+}
+const std::vector<Vec3>& HybridSystem::structure_part_moment() const {
+  return world_ && impl_->mesh >= 0 ? world_->mesh_load(impl_->mesh).part_moment : impl_->no_parts;
+}
+double HybridSystem::rigid_kinetic_energy() const { return world_ ? world_->kinetic_energy() : 0.0; }
+
+}  // namespace hs::bridge

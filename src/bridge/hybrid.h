@@ -1,0 +1,133 @@
+// The hybrid system: bonded particles (hs::bonded::Engine) and rigid ice blocks
+// (hs::rigid::RigidWorld) advanced together, with blocks turning into particles near the
+// structure (docs/bridge.md).
+//
+// One DEM step (data flows one way, DESIGN.md):
+//   1. the blocks' poses for the particles: kinematic extrapolation from the last rigid step,
+//        x(t) = x_r + v_r (t - t_r),   q(t) = exp(w_r (t - t_r)) q_r;
+//   2. Engine::step(): particle–block contact forces act on the particles (same contact law as
+//      particle–particle) and their reactions accumulate as impulses on the blocks;
+//   3. every k-th DEM step (the rigid step h_r = k dt): the accumulated impulses are summed over
+//      the MPI ranks and applied to the blocks (the one sync point), the rigid world advances by
+//      h_r (water, block–block and block–structure contact, freeze joints), the blocks' new
+//      states become the kinematic reference, and the conversion policy runs.
+// The rigid step obeys a stated stability rule (max_rigid_step); larger steps are refused.
+#pragma once
+
+#include "bonded/engine.h"
+#include "bridge/converter.h"
+#include "bridge/coupling.h"
+#include "rigid/rigid_world.h"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hs::bridge {
+
+enum class ConversionMode { Hybrid, AllAtStart, Never };
+
+/// Parses "hybrid" | "all_at_start" | "never"; throws hs::InputError(path, ...) otherwise.
+ConversionMode conversion_mode_from_string(const std::string& s, const std::string& path = "/blocks/conversion");
+const char* to_string(ConversionMode m);
+
+/// Stability rule for the explicit impulse coupling (docs/bridge.md, "Multi-rate stepping").
+/// Between rigid steps a block moves at constant velocity while particles press on it; the
+/// accumulated impulse changes its velocity once per rigid step. For a block of mass m held by
+/// n contact springs of stiffness k this is symplectic Euler on an oscillator of angular
+/// frequency omega = sqrt(n k / m), stable for h < 2 / omega. The rule keeps a factor
+/// `safety` below that bound for the lightest block with the most contacts a face can carry:
+///     h_r <= safety * 2 sqrt(m_min / (n_max k)),  n_max = A_face,max / (sqrt(3)/2 D^2)
+/// (particles in close-packed contact with the largest face). Rotation about a face's centre
+/// has omega_rot^2 <= n k / m for a box, so the translational bound governs.
+struct RigidStepInputs {
+  double min_block_mass = 0.0;      ///< kg
+  double max_face_area = 0.0;       ///< m^2
+  double particle_diameter = 0.0;   ///< D, m
+  double contact_stiffness = 0.0;   ///< k (normal), N/m
+  double safety = 0.2;              ///< fraction of the stability bound used
+};
+double max_rigid_step(const RigidStepInputs& in);
+
+/// Outcome counters of a hybrid run (printed at the end and stored in the run file).
+struct HybridReport {
+  std::uint64_t conversions = 0;          ///< blocks turned into particles
+  std::uint64_t particles_created = 0;
+  std::uint64_t bonds_created = 0;
+  std::uint64_t sites_dropped = 0;        ///< lattice sites dropped for overlap
+  std::int64_t peak_particles = 0;        ///< most particles at any rigid step (all ranks)
+  std::uint64_t rigid_steps = 0;
+  std::size_t blocks_initial = 0, blocks_now = 0;
+  double rigid_dt = 0.0;                  ///< s
+  std::uint64_t steps_per_rigid_step = 0; ///< k
+  double rigid_dt_limit = 0.0;            ///< the stability rule's bound, s
+  double seconds_rigid = 0.0, seconds_bonded = 0.0, seconds_bridge = 0.0;  ///< wall time
+  double kinetic_energy_change = 0.0;     ///< sum over conversions of KE after - before, J
+};
+
+/// Everything the hybrid system needs besides the engine and the blocks.
+struct HybridDef {
+  ConversionMode mode = ConversionMode::Hybrid;
+  rigid::RigidWorldDef world;             ///< its dt is replaced by the chosen rigid step
+  double rigid_dt = 0.0;                  ///< s; 0 = the stability rule's limit
+  double rigid_dt_safety = 0.2;           ///< see max_rigid_step
+  IceMaterial ice;                        ///< what converted blocks become
+  double block_density = 920.0;           ///< kg/m^3
+  double block_friction = 0.3;            ///< particle–block Coulomb coefficient
+  bool has_structure = false;
+  rigid::KinematicMeshDef structure;      ///< the structure's mesh for block contact
+};
+
+/// One block to start with.
+struct BlockInit {
+  rigid::BlockDef def;
+};
+
+/// A freeze joint between two starting blocks (indices into the BlockInit list).
+struct JointInit {
+  std::size_t a = 0, b = 0;
+  Vec3 anchor = Vec3::Zero();   ///< world point on the common face, m
+  Vec3 normal = Vec3::UnitZ();  ///< unit, from a to b
+  double area = 0.0;            ///< m^2
+};
+
+class HybridSystem {
+ public:
+  /// Builds the rigid world (only when `blocks` is not empty: a scene pays only for what it
+  /// uses), adds the structure as a kinematic mesh and the blocks, chooses the rigid step
+  /// (throws hs::InputError at /blocks/rigid_dt if def.rigid_dt exceeds the rule) and, in
+  /// AllAtStart mode, converts every block. Call before Engine::distribute().
+  HybridSystem(bonded::Engine& engine, const HybridDef& def, const std::vector<BlockInit>& blocks,
+               const std::vector<JointInit>& joints = {});
+  ~HybridSystem();
+  HybridSystem(const HybridSystem&) = delete;
+  HybridSystem& operator=(const HybridSystem&) = delete;
+
+  /// One DEM step of the engine; a rigid step every steps_per_rigid_step() of them.
+  void step();
+
+  bool has_rigid() const { return world_ != nullptr; }
+  rigid::RigidWorld* world() { return world_.get(); }
+  const rigid::RigidWorld* world() const { return world_.get(); }
+  /// Load of the blocks on the structure over the last rigid step (zero without blocks).
+  Vec3 structure_force() const;
+  Vec3 structure_moment() const;
+  /// Per structure part (same parts as the engine's mesh wall); empty without blocks.
+  const std::vector<Vec3>& structure_part_force() const;
+  const std::vector<Vec3>& structure_part_moment() const;
+  /// Kinetic energy of the rigid blocks, J.
+  double rigid_kinetic_energy() const;
+
+  const HybridReport& report() const { return report_; }
+  std::uint64_t steps_per_rigid_step() const { return report_.steps_per_rigid_step; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  bonded::Engine& engine_;
+  std::unique_ptr<rigid::RigidWorld> world_;
+  HybridReport report_;
+};
+
+}  // namespace hs::bridge
