@@ -30,7 +30,21 @@ HybridSetup hybrid_setup(const scene::Scene& s) {
   w.solver_iterations = b.solver_iterations;
   w.freeze_bond_strength = s.bonds.freeze_tensile_strength;
   w.freeze_bond_shear_strength = s.bonds.freeze_shear_strength;
+  d.safety_factor = b.safety_factor;
+  d.flexural_strength = b.flexural_strength > 0.0 ? b.flexural_strength : s.analysis.flexural_strength;
   if (!s.has_blocks) return out;
+  {
+    const auto& g = b.region;
+    bridge::ConversionRegion& r = d.region;
+    r.shape = g.shape == "box" ? bridge::ConversionRegion::Shape::Box : bridge::ConversionRegion::Shape::Cylinder;
+    r.offset = g.offset;
+    if (g.shape == "box") r.half_extents = g.half_extents;
+    const double st_r = s.has_structure ? scene::structure_radius(s, scene::structure_mesh(s)) : 0.0;
+    r.radius = g.radius > 0.0 ? g.radius : st_r + 5.0;
+    r.z_min = g.z_min;
+    r.z_max = g.z_max;
+    r.validate();
+  }
 
   if (s.has_structure) {
     const mesh::TriMesh m = scene::structure_mesh(s);

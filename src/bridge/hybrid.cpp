@@ -72,6 +72,8 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   rs.safety = def.rigid_dt_safety;
   report_.rigid_dt_limit = max_rigid_step(rs);
   const double dt = engine.dt();
+  if (!(dt > 0.0))
+    throw InputError("/time/dt", "the DEM step is not set (no particles to take it from, paper Eq. 2); give time.dt");
   if (def.rigid_dt > report_.rigid_dt_limit * (1.0 + 1e-12)) {
     std::ostringstream msg;
     msg << "rigid step " << def.rigid_dt << " s exceeds the stability limit " << report_.rigid_dt_limit
@@ -98,6 +100,9 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
     world_->add_freeze_joint(rigid::FreezeJointDef{ids.at(j.a), ids.at(j.b), j.anchor, j.normal, j.area});
   report_.blocks_now = world_->block_count();
   m.coupler.reset(world_->blocks());
+  if (def.mode == ConversionMode::AllAtStart)
+    for (const rigid::BlockId id : world_->blocks())
+      if (!world_->fixed(id)) convert(id);
 }
 
 HybridSystem::~HybridSystem() = default;
@@ -117,7 +122,73 @@ void HybridSystem::step() {
   world_->substep();
   ++report_.rigid_steps;
   report_.seconds_rigid += seconds_since(t2);
+  if (m.def.mode == ConversionMode::Hybrid) {
+    const auto t3 = Clock::now();
+    apply_policy();
+    report_.seconds_bridge += seconds_since(t3);
+  }
   report_.blocks_now = world_->block_count();
+  report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());
+}
+
+void HybridSystem::apply_policy() {
+  Impl& m = *impl_;
+  const Vec3 sp = m.mesh >= 0 ? world_->mesh_position(m.mesh) : Vec3::Zero();
+  const FreezeBondStrength strength{m.def.world.freeze_bond_strength,
+                                    m.def.world.freeze_bond_shear_strength < 0.0
+                                        ? m.def.world.freeze_bond_strength
+                                        : m.def.world.freeze_bond_shear_strength};
+  std::vector<rigid::BlockId> to_convert;
+  std::vector<bool> by_freeze;
+  std::vector<FreezeJointSample> joints;
+  std::vector<PointLoad> loads;
+  for (const rigid::BlockId id : world_->blocks()) {
+    if (world_->fixed(id)) continue;  // fixed blocks are walls and floors, not ice
+    const Vec3 x = world_->position(id), half = world_->half_extents(id);
+    if (!m.def.region.contains_block(sp, x, half)) continue;
+    joints.clear();
+    for (const rigid::JointId j : world_->joints_of(id)) {
+      const rigid::JointLoad L = world_->joint_load(j);
+      joints.push_back({L.tension, L.shear, world_->joint_area(j)});
+    }
+    loads.clear();
+    for (const auto& c : world_->contact_forces(id)) loads.push_back({c.point, c.force});
+    const FreezeBondEstimate fe = freeze_bond_estimate(joints, strength);
+    const FlexureEstimate fl =
+        flexure_estimate(BlockBox{half, x, world_->orientation(id)}, loads, m.def.flexural_strength);
+    const BlockStress st = block_stress(fe, fl);
+    report_.max_utilisation = std::max(report_.max_utilisation, st.utilisation());
+    if (converts(st, m.def.safety_factor)) {
+      to_convert.push_back(id);
+      by_freeze.push_back(st.governing == StressMode::FreezeBond);
+    }
+  }
+  for (std::size_t k = 0; k < to_convert.size(); ++k) {
+    convert(to_convert[k]);
+    ++(by_freeze[k] ? report_.conversions_freeze : report_.conversions_flexure);
+  }
+}
+
+ConversionReport HybridSystem::convert(rigid::BlockId id) {
+  Impl& m = *impl_;
+  BlockState b;
+  b.half_extents = world_->half_extents(id);
+  b.pose.position = world_->position(id);
+  b.pose.orientation = world_->orientation(id);
+  b.velocity = world_->velocity(id);
+  b.angular_velocity = world_->angular_velocity(id);
+  b.mass = world_->mass(id);
+  const ConversionReport r = convert_block(engine_, b, m.def.ice);
+  report_.joints_released += world_->joints_of(id).size();
+  world_->remove_block(id);
+  m.coupler.reset(world_->blocks());
+  ++report_.conversions;
+  report_.particles_created += r.particles_created;
+  report_.bonds_created += r.bonds_created;
+  report_.sites_dropped += r.particles_dropped;
+  report_.kinetic_energy_change += r.kinetic_energy_after - r.kinetic_energy_before;
+  report_.blocks_now = world_->block_count();
+  return r;
 }
 
 Vec3 HybridSystem::structure_force() const {

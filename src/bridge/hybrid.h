@@ -15,6 +15,7 @@
 #pragma once
 
 #include "bonded/engine.h"
+#include "bridge/block_stress.h"
 #include "bridge/converter.h"
 #include "bridge/coupling.h"
 #include "rigid/rigid_world.h"
@@ -58,6 +59,10 @@ struct HybridReport {
   std::uint64_t sites_dropped = 0;        ///< lattice sites dropped for overlap
   std::int64_t peak_particles = 0;        ///< most particles at any rigid step (all ranks)
   std::uint64_t rigid_steps = 0;
+  std::uint64_t conversions_freeze = 0;   ///< conversions governed by the freeze-bond estimate
+  std::uint64_t conversions_flexure = 0;  ///< ... by the flexural estimate
+  std::uint64_t joints_released = 0;      ///< freeze joints removed with converted blocks
+  double max_utilisation = 0.0;           ///< largest max(u_freeze, u_flex) seen in the region
   std::size_t blocks_initial = 0, blocks_now = 0;
   double rigid_dt = 0.0;                  ///< s
   std::uint64_t steps_per_rigid_step = 0; ///< k
@@ -77,6 +82,11 @@ struct HybridDef {
   double block_friction = 0.3;            ///< particle–block Coulomb coefficient
   bool has_structure = false;
   rigid::KinematicMeshDef structure;      ///< the structure's mesh for block contact
+  // Conversion policy (Hybrid mode): a block converts when it lies in the region and
+  // max(u_freeze, u_flex) x safety_factor >= 1 (block_stress.h).
+  ConversionRegion region;
+  double safety_factor = 1.0;
+  double flexural_strength = 0.5e6;       ///< Pa
 };
 
 /// One block to start with.
@@ -120,11 +130,15 @@ class HybridSystem {
   double rigid_kinetic_energy() const;
 
   const HybridReport& report() const { return report_; }
+  /// Converts block `id` now (removes it from the rigid world and appends its particles);
+  /// the policy calls it, tests may too. Returns the converter's report.
+  ConversionReport convert(rigid::BlockId id);
   std::uint64_t steps_per_rigid_step() const { return report_.steps_per_rigid_step; }
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
+  void apply_policy();
   bonded::Engine& engine_;
   std::unique_ptr<rigid::RigidWorld> world_;
   HybridReport report_;

@@ -489,6 +489,42 @@ std::size_t RigidWorld::kinematic_mesh_count() const { return impl_->meshes.size
 Vec3 RigidWorld::mesh_position(int k) const { return impl_->meshes.at(k)->origin; }
 const MeshLoad& RigidWorld::mesh_load(int k) const { return impl_->meshes.at(k)->load; }
 
+std::vector<RigidWorld::ContactForce> RigidWorld::contact_forces(BlockId id) const {
+  const Impl& m = *impl_;
+  const btRigidBody* body = impl_->block(id).body.get();
+  std::vector<ContactForce> out;
+  const double h = m.def.dt;
+  const int nm = m.dispatcher->getNumManifolds();
+  for (int k = 0; k < nm; ++k) {
+    const btPersistentManifold* man = m.dispatcher->getManifoldByIndexInternal(k);
+    const bool is0 = man->getBody0() == body, is1 = man->getBody1() == body;
+    if (!is0 && !is1) continue;
+    const double sign = is0 ? 1.0 : -1.0;  // Bullet applies +impulse to body 0
+    for (int c = 0; c < man->getNumContacts(); ++c) {
+      const btManifoldPoint& p = man->getContactPoint(c);
+      if (p.m_appliedImpulse == 0.0 && p.m_appliedImpulseLateral1 == 0.0 && p.m_appliedImpulseLateral2 == 0.0)
+        continue;
+      const Vec3 j = from_bt(p.m_normalWorldOnB * p.m_appliedImpulse +
+                             p.m_lateralFrictionDir1 * p.m_appliedImpulseLateral1 +
+                             p.m_lateralFrictionDir2 * p.m_appliedImpulseLateral2);
+      out.push_back({from_bt(is0 ? p.getPositionWorldOnA() : p.getPositionWorldOnB()), sign * j / h});
+    }
+  }
+  return out;
+}
+
+std::vector<JointId> RigidWorld::joints_of(BlockId id) const {
+  std::vector<JointId> out;
+  const Impl& m = *impl_;
+  for (std::uint32_t k = 0; k < m.joints.size(); ++k) {
+    const JointSlot& j = *m.joints[k];
+    if (j.alive && !j.broken && (j.a == id || j.b == id)) out.push_back(JointId{k, j.generation});
+  }
+  return out;
+}
+
+double RigidWorld::joint_area(JointId id) const { return impl_->joint(id).area; }
+
 JointId RigidWorld::add_freeze_joint(const FreezeJointDef& d) {
   Impl& m = *impl_;
   BlockSlot& sa = m.block(d.a);

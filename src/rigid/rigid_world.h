@@ -187,6 +187,18 @@ class RigidWorld {
   /// Load of the blocks on mesh k during the last sub-step.
   const MeshLoad& mesh_load(int k) const;
 
+  /// A contact force that acted on a block during the last sub-step (from another block or a
+  /// kinematic mesh): Bullet's normal + friction impulse at the point, divided by the sub-step.
+  struct ContactForce {
+    Vec3 point = Vec3::Zero();  ///< world, on the block's surface, m
+    Vec3 force = Vec3::Zero();  ///< on the block, N
+  };
+  /// Every contact force on block `id` in the last sub-step (walks all contact manifolds).
+  std::vector<ContactForce> contact_forces(BlockId id) const;
+  /// Intact freeze joints that hold block `id`, in slot order.
+  std::vector<JointId> joints_of(BlockId id) const;
+  double joint_area(JointId id) const;
+
   JointId add_freeze_joint(const FreezeJointDef& j);
   void remove_joint(JointId id);
   bool joint_broken(JointId id) const;

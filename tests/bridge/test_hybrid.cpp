@@ -1,0 +1,231 @@
+// The hybrid system: the rigid step's stability rule, no rigid world without blocks, the
+// blocks' load on the structure, all_at_start conversion and the conversion policy
+// (region, freeze-bond estimate, safety factor).
+#include "bridge/hybrid.h"
+#include "common/error.h"
+#include "mesh/pier.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+
+using namespace hs;
+using namespace hs::bonded;
+using hs::bridge::BlockInit;
+using hs::bridge::ConversionMode;
+using hs::bridge::HybridDef;
+using hs::bridge::HybridSystem;
+
+namespace {
+
+constexpr double kRhoI = 920.0, kD = 0.25, kE = 1e7;
+
+EngineDef engine_def(bool gravity) {
+  EngineDef d;
+  d.gravity = gravity ? Vec3(0, 0, -9.81) : Vec3::Zero();
+  d.youngs_modulus = kE;
+  d.density = kRhoI;
+  d.contact.kn = d.contact.kt = kPi * kE * kD / 12.0;
+  const double m = kRhoI * hcp_cell_volume(kD), I = 0.4 * m * 0.25 * kD * kD;
+  d.bond[0] = ParallelBondParams::from_stiffness(d.contact.kn, d.contact.kn, 0.5 * kD, INFINITY, INFINITY, 0.0,
+                                                 0.5 * m, 0.5 * I);
+  return d;
+}
+
+// One far-away particle so that the engine has something to step.
+void add_spectator(Engine& e) {
+  ParticleInit p;
+  p.x = Vec3(1000, 1000, 1000);
+  p.radius = 0.5 * kD;
+  p.mass = kRhoI * hcp_cell_volume(kD);
+  e.add_particle(p);
+}
+
+HybridDef dry_def() {
+  HybridDef d;
+  d.world.water = false;
+  d.ice.diameter = kD;
+  d.block_density = kRhoI;
+  return d;
+}
+
+BlockInit block(const Vec3& half, const Vec3& x) {
+  BlockInit b;
+  b.def.half_extents = half;
+  b.def.position = x;
+  b.def.density = kRhoI;
+  return b;
+}
+
+}  // namespace
+
+TEST(HybridStep, StabilityRuleAndRefusal) {
+  // The rule: h <= safety * 2 sqrt(m / (n k)), n = A / (sqrt(3)/2 D^2).
+  bridge::RigidStepInputs in;
+  in.min_block_mass = 1000.0;
+  in.max_face_area = 2.0;
+  in.particle_diameter = 0.25;
+  in.contact_stiffness = 6.5e5;
+  in.safety = 0.2;
+  const double n = 2.0 / (0.5 * std::sqrt(3.0) * 0.0625);
+  EXPECT_NEAR(bridge::max_rigid_step(in), 0.2 * 2.0 * std::sqrt(1000.0 / (n * 6.5e5)), 1e-15);
+
+  // An explicit rigid_dt above the limit is refused, naming the field; at the limit it runs,
+  // rounded down to whole DEM steps.
+  Engine e(engine_def(false));
+  add_spectator(e);
+  e.set_dt(1e-4);
+  HybridDef d = dry_def();
+  const std::vector<BlockInit> blocks = {block(Vec3(1.0, 0.75, 0.3), Vec3::Zero())};
+  d.rigid_dt = 1.0;
+  try {
+    HybridSystem h(e, d, blocks);
+    FAIL() << "rigid_dt = 1 s was accepted";
+  } catch (const InputError& err) {
+    EXPECT_NE(std::string(err.what()).find("/blocks/rigid_dt"), std::string::npos) << err.what();
+    std::printf("[ hybrid ] refused: %s\n", err.what());
+  }
+  d.rigid_dt = 0.0;
+  HybridSystem h(e, d, blocks);
+  const auto& r = h.report();
+  EXPECT_LE(r.rigid_dt, r.rigid_dt_limit);
+  EXPECT_GT(r.rigid_dt, r.rigid_dt_limit - 1e-4);
+  EXPECT_NEAR(r.rigid_dt, r.steps_per_rigid_step * 1e-4, 1e-15);
+  std::printf("[ hybrid ] rigid step %.4g s = %llu DEM steps, limit %.4g s\n", r.rigid_dt,
+              static_cast<unsigned long long>(r.steps_per_rigid_step), r.rigid_dt_limit);
+}
+
+TEST(HybridStep, NoRigidWorldWithoutBlocks) {
+  Engine e(engine_def(false));
+  add_spectator(e);
+  HybridSystem h(e, dry_def(), {});
+  EXPECT_FALSE(h.has_rigid());
+  EXPECT_EQ(h.world(), nullptr);
+  for (int k = 0; k < 10; ++k) h.step();
+  EXPECT_EQ(e.step_count(), 10u);
+  EXPECT_EQ(h.structure_force(), Vec3::Zero());
+  EXPECT_EQ(h.report().rigid_steps, 0u);
+}
+
+TEST(HybridStep, BlockLoadOnStructureBalancesItsMomentum) {
+  // A block dropped onto the cone through the hybrid system: the structure's block load,
+  // summed over DEM steps (as the run's force series sums it), equals the block's momentum
+  // change minus gravity's impulse.
+  Engine e(engine_def(true));
+  add_spectator(e);
+  e.set_dt(1e-4);
+  HybridDef d = dry_def();
+  mesh::PierParams pp;
+  const mesh::TriMesh pier = mesh::make_pier(pp);
+  d.has_structure = true;
+  d.structure.vertices = pier.vertices;
+  d.structure.triangles = pier.triangles;
+  d.structure.triangle_part = pier.triangle_part;
+  d.structure.part_count = pier.part_names.size();
+  d.mode = ConversionMode::Never;
+  BlockInit b = block(Vec3(1.0, 0.6, 0.3), Vec3(mesh::pier_radius_at(pp, 0.0) - 0.2, 0.3, 2.8));
+  b.def.velocity = Vec3(0.2, 0, -1.0);
+  HybridSystem h(e, d, {b});
+  const rigid::BlockId id = h.world()->blocks().at(0);
+  const double m = h.world()->mass(id);
+  const Vec3 v0 = h.world()->velocity(id);
+  Vec3 impulse = Vec3::Zero();
+  const std::uint64_t n = 30 * h.steps_per_rigid_step();
+  for (std::uint64_t k = 0; k < 20 * n; ++k) {
+    h.step();
+    impulse += h.structure_force() * e.dt();
+  }
+  const double t = h.world()->time();
+  EXPECT_NEAR(t, e.time(), 1e-12);
+  const Vec3 expected = -(m * (h.world()->velocity(id) - v0) - m * Vec3(0, 0, -9.81) * t);
+  EXPECT_GT(impulse.norm(), 0.5 * m);
+  EXPECT_LT((impulse - expected).norm(), 1e-9 * expected.norm());
+  std::printf("[ hybrid ] block on cone via the hybrid stepper: impulse (%.2f, %.2f, %.2f) N s, momentum balance "
+              "error %.2e\n",
+              impulse.x(), impulse.y(), impulse.z(), (impulse - expected).norm() / expected.norm());
+}
+
+TEST(HybridStep, AllAtStartConvertsEveryBlockAndKeepsTheirMass) {
+  Engine e(engine_def(false));
+  e.set_dt(1e-4);
+  HybridDef d = dry_def();
+  d.mode = ConversionMode::AllAtStart;
+  const std::vector<BlockInit> blocks = {block(Vec3(1.0, 0.75, 0.5), Vec3(0, 0, 0)),
+                                         block(Vec3(0.75, 0.75, 0.375), Vec3(5, 0, 0))};
+  HybridSystem h(e, d, blocks);
+  ASSERT_TRUE(h.has_rigid());
+  EXPECT_EQ(h.world()->block_count(), 0u);
+  EXPECT_EQ(h.report().conversions, 2u);
+  double M = 0;
+  for (std::size_t i = 0; i < e.particles().size(); ++i) M += e.particles().mass[i];
+  const double expected = kRhoI * 8.0 * (1.0 * 0.75 * 0.5 + 0.75 * 0.75 * 0.375);
+  EXPECT_NEAR(M, expected, 1e-12 * expected);
+  EXPECT_EQ(h.report().particles_created, e.particles().size());
+  std::printf("[ hybrid ] all_at_start: 2 blocks -> %zu particles, %llu bonds, mass %.6f kg (blocks %.6f kg)\n",
+              e.particles().size(), static_cast<unsigned long long>(h.report().bonds_created), M, expected);
+}
+
+namespace {
+// Two blocks frozen together along x; the first is fixed, the second is pulled along +x by
+// a force ramped slowly. Returns the tension on the joint (N) when the pulled block
+// converted (or the joint broke), and whether it converted.
+struct PullResult {
+  double force = 0.0;
+  bool converted = false;
+  bool joint_broke = false;
+};
+PullResult pull_until_conversion(double safety_factor, bool in_region) {
+  Engine e(engine_def(false));
+  add_spectator(e);
+  e.set_dt(1e-4);
+  HybridDef d = dry_def();
+  d.world.gravity = Vec3::Zero();      // the joint carries only the pull
+  d.world.freeze_bond_strength = 2e4;  // Pa
+  d.safety_factor = safety_factor;
+  d.region.shape = bridge::ConversionRegion::Shape::Box;
+  d.region.half_extents = Vec3(5, 5, 5);
+  d.region.offset = in_region ? Vec3::Zero() : Vec3(100, 0, 0);
+  // A 5 mm gap, so that no contact shares the joint's load (as in the rigid joint test).
+  std::vector<BlockInit> blocks = {block(Vec3(0.5, 0.5, 0.3), Vec3(-0.5, 0, 0)),
+                                   block(Vec3(0.5, 0.5, 0.3), Vec3(0.505, 0, 0))};
+  blocks[0].def.fixed = true;
+  const double area = 0.2;  // m^2
+  HybridSystem h(e, d, blocks, {{0, 1, Vec3(0.0025, 0, 0), Vec3::UnitX(), area}});
+  const rigid::BlockId pulled = h.world()->blocks().at(1);
+  PullResult out;
+  const double rate = 2e4 * area / 2.0;  // N/s: reaches the joint strength in 2 s
+  for (int k = 0; k < 40000; ++k) {
+    const double f = rate * e.time();
+    if (!h.world()->alive(pulled)) {
+      out.converted = true;
+      return out;
+    }
+    if (h.world()->broken_joint_count() > 0) {
+      out.joint_broke = true;
+      return out;
+    }
+    h.world()->clear_external_forces();
+    h.world()->add_force(pulled, Vec3(f, 0, 0), h.world()->position(pulled));
+    out.force = f;
+    h.step();
+  }
+  return out;
+}
+}  // namespace
+
+TEST(HybridPolicy, FreezeBondEstimateConvertsAtStrengthOverSafetyFactor) {
+  // Safety factor 2: the block converts when the joint carries half its strength (2e4 Pa x
+  // 0.2 m^2 = 4000 N -> 2000 N), before the rigid world would break the joint.
+  const PullResult r = pull_until_conversion(2.0, true);
+  EXPECT_TRUE(r.converted);
+  EXPECT_NEAR(r.force / 2000.0, 1.0, 0.05);
+  std::printf("[ hybrid ] freeze-bond conversion at %.1f N (strength x area / SF = 2000 N), ratio %.4f\n", r.force,
+              r.force / 2000.0);
+  // Outside the region the same load never converts: the joint breaks at its strength instead.
+  const PullResult o = pull_until_conversion(2.0, false);
+  EXPECT_FALSE(o.converted);
+  EXPECT_TRUE(o.joint_broke);
+  EXPECT_NEAR(o.force / 4000.0, 1.0, 0.05);
+  std::printf("[ hybrid ] outside the region: joint broke at %.1f N (4000 N), no conversion\n", o.force);
+}
