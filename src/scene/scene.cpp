@@ -625,6 +625,10 @@ Scene parse_scene(const json& j, const std::string& base_dir) {
     if (!b.ridge_file.empty()) {
       const std::filesystem::path fp(b.ridge_file);
       b.ridge_file_path = fp.is_absolute() || base_dir.empty() ? fp.string() : (std::filesystem::path(base_dir) / fp).string();
+      if (!std::filesystem::exists(b.ridge_file_path))
+        throw InputError("/blocks/ridge_file", "cannot find " + b.ridge_file_path +
+                                                   " (relative to the scene file); make it with `hybridsim ridge "
+                                                   "<ridge scene>.json -o <file>` or fix the path");
     }
     b.offset = o.vec<3>("offset", b.offset, "m", "shift of the ridge file's blocks, e.g. [30, 0, 0]");
     for (const char* key : {"keep_x", "keep_y"}) {

@@ -350,6 +350,38 @@ TEST(SceneStructure, Errors) {
   expect_error([&] { scene::parse_scene(j); }, "/structure/pier", "only used with");
 }
 
+TEST(SceneBlocks, DefaultsAndErrors) {
+  json j = minimal();
+  j["blocks"] = json::parse(R"({"list": [{"half_extents": [1, 0.5, 0.3], "position": [0, 0, -1]}]})");
+  const scene::Scene s = scene::parse_scene(j);
+  ASSERT_TRUE(s.has_blocks);
+  EXPECT_EQ(s.blocks.list.size(), 1u);
+  EXPECT_EQ(s.blocks.conversion, "hybrid");
+  EXPECT_EQ(s.blocks.density, s.material.density);
+  EXPECT_EQ(s.blocks.flexural_strength, s.analysis.flexural_strength);
+  EXPECT_FALSE(scene::parse_scene(minimal()).has_blocks);
+
+  expect_bad("/blocks", json::object(), "/blocks", "no blocks");
+  expect_bad("/blocks/ridge_file", "no_such_ridge.h5", "/blocks/ridge_file", "hybridsim ridge");
+  expect_bad("/blocks/list", json::parse(R"([{"half_extents": [1, 0, 0.3]}])"), "/blocks/list/0/half_extents/1",
+             "must be > 0");
+  expect_bad("/blocks/list", json::parse(R"([{"orientation": [0, 0, 0, 0]}])"), "/blocks/list/0/orientation",
+             "non-zero quaternion");
+  expect_bad("/blocks/list", json::parse(R"([{"postion": [0, 0, 0]}])"), "/blocks/list/0/postion",
+             "did you mean \"position\"");
+  json k = minimal();
+  k["blocks"] = json::parse(R"({"list": [{}], "rigid_dt": -1})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/rigid_dt", "out of range");
+  k["blocks"] = json::parse(R"({"list": [{}], "conversion": "sometimes"})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/conversion", "use one of");
+  k["blocks"] = json::parse(R"({"list": [{}], "safety_factor": 0})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/safety_factor", "out of range");
+  k["blocks"] = json::parse(R"({"list": [{}], "region": {"shape": "box"}})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/region/half_extents", "three half extents");
+  k["blocks"] = json::parse(R"({"list": [{}], "keep_x": [5, 1]})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/keep_x", "min must be < max");
+}
+
 TEST(SceneStructure, MeshFileRelativeToTheSceneFile) {
   namespace fs = std::filesystem;
   const fs::path d = fs::temp_directory_path() / ("hs_test_scene_mesh_" + std::to_string(::getpid()));
