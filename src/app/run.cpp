@@ -307,6 +307,23 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
         << sci(b.structure_radius, 4) << " m, at (" << st.position.transpose() << ") m, velocity ("
         << st.velocity.transpose() << ") m/s\n";
   }
+  if (s.has_blocks) {
+    HybridSetup hsu = hybrid_setup(s);
+    for (const auto& w : hsu.warnings) err << "warning: " << w << "\n";
+    const bridge::ConversionMode mode = hsu.def.mode;
+    hsu.def.mode = bridge::ConversionMode::Never;  // count and check only; convert nothing here
+    double vol = 0.0;
+    for (const auto& bi : hsu.blocks) vol += 8.0 * bi.def.half_extents.prod();
+    const double D = s.material.particle_diameter;
+    const double est = vol / (D * D * D / std::sqrt(2.0));  // particles if all were converted
+    bridge::HybridSystem hs(*b.engine, hsu.def, hsu.blocks, hsu.joints);  // InputError at /blocks/rigid_dt
+    const auto& r = hs.report();
+    out << "blocks:           " << hsu.blocks.size() << " rigid (" << hsu.ridge_blocks_in_file << " in the ridge file), "
+        << hsu.joints.size() << " freeze joints, " << sci(vol, 4) << " m^3 of ice (~" << sci(est, 3)
+        << " particles if all converted); conversion \"" << bridge::to_string(mode) << "\"\n";
+    out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
+        << " DEM steps (stability limit " << sci(r.rigid_dt_limit, 4) << " s)\n";
+  }
   out << "time step:        dt = " << sci(dt, 4) << " s" << (s.time.dt == 0 ? " (paper Eq. 2)" : "")
       << ", critical dt = " << sci(crit, 4) << " s (margin x" << sci(crit / dt, 3) << ")\n";
   out << "steps:            " << sc.total_steps << " for " << s.time.duration << " s; " << rows

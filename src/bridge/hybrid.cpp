@@ -31,12 +31,12 @@ const char* to_string(ConversionMode m) {
 }
 
 double max_rigid_step(const RigidStepInputs& in) {
-  if (!(in.min_block_mass > 0.0) || !(in.max_face_area > 0.0) || !(in.particle_diameter > 0.0) ||
-      !(in.contact_stiffness > 0.0) || !(in.safety > 0.0))
+  if (!(in.min_mass_per_face_area > 0.0) || !(in.particle_diameter > 0.0) || !(in.contact_stiffness > 0.0) ||
+      !(in.safety > 0.0))
     throw std::invalid_argument("max_rigid_step: every input must be > 0");
   const double D = in.particle_diameter;
-  const double n_max = std::max(1.0, in.max_face_area / (0.5 * std::sqrt(3.0) * D * D));
-  return in.safety * 2.0 * std::sqrt(in.min_block_mass / (n_max * in.contact_stiffness));
+  const double mass_per_contact = in.min_mass_per_face_area * 0.5 * std::sqrt(3.0) * D * D;
+  return in.safety * 2.0 * std::sqrt(mass_per_contact / in.contact_stiffness);
 }
 
 struct HybridSystem::Impl {
@@ -58,12 +58,19 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
 
   // ---- the rigid step: the stability rule, then a whole number of DEM steps ----
   RigidStepInputs rs;
-  rs.min_block_mass = INFINITY;
+  rs.min_mass_per_face_area = INFINITY;
+  Vec3 governing = Vec3::Zero();
   for (const auto& b : blocks) {
+    if (b.def.fixed) continue;
     const Vec3& h = b.def.half_extents;
-    rs.min_block_mass = std::min(rs.min_block_mass, b.def.density * 8.0 * h.prod());
-    rs.max_face_area = std::max({rs.max_face_area, 4.0 * h.x() * h.y(), 4.0 * h.y() * h.z(), 4.0 * h.x() * h.z()});
+    const double face = std::max({4.0 * h.x() * h.y(), 4.0 * h.y() * h.z(), 4.0 * h.x() * h.z()});
+    const double mpa = b.def.density * 8.0 * h.prod() / face;
+    if (mpa < rs.min_mass_per_face_area) {
+      rs.min_mass_per_face_area = mpa;
+      governing = 2.0 * h;
+    }
   }
+  if (!std::isfinite(rs.min_mass_per_face_area)) rs.min_mass_per_face_area = 1e30;  // only fixed blocks
   rs.particle_diameter = def.ice.diameter;
   const auto& ed = engine.def();
   rs.contact_stiffness = ed.contact_model == bonded::ContactModel::LinearSpringDashpot
@@ -77,9 +84,9 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   if (def.rigid_dt > report_.rigid_dt_limit * (1.0 + 1e-12)) {
     std::ostringstream msg;
     msg << "rigid step " << def.rigid_dt << " s exceeds the stability limit " << report_.rigid_dt_limit
-        << " s (lightest block " << rs.min_block_mass << " kg pressed by up to "
-        << std::lround(rs.max_face_area / (0.5 * std::sqrt(3.0) * rs.particle_diameter * rs.particle_diameter))
-        << " particle contacts of stiffness " << rs.contact_stiffness
+        << " s (thinnest block " << governing.x() << " x " << governing.y() << " x " << governing.z()
+        << " m: " << rs.min_mass_per_face_area << " kg per m^2 of its largest face, pressed by close-packed "
+        << "particles of D = " << rs.particle_diameter << " m with contact stiffness " << rs.contact_stiffness
         << " N/m; docs/bridge.md, \"Multi-rate stepping\"); set rigid_dt <= " << report_.rigid_dt_limit
         << " or 0 to use the limit";
     throw InputError("/blocks/rigid_dt", msg.str());

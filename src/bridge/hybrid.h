@@ -37,17 +37,18 @@ const char* to_string(ConversionMode m);
 /// Between rigid steps a block moves at constant velocity while particles press on it; the
 /// accumulated impulse changes its velocity once per rigid step. For a block of mass m held by
 /// n contact springs of stiffness k this is symplectic Euler on an oscillator of angular
-/// frequency omega = sqrt(n k / m), stable for h < 2 / omega. The rule keeps a factor
-/// `safety` below that bound for the lightest block with the most contacts a face can carry:
-///     h_r <= safety * 2 sqrt(m_min / (n_max k)),  n_max = A_face,max / (sqrt(3)/2 D^2)
-/// (particles in close-packed contact with the largest face). Rotation about a face's centre
-/// has omega_rot^2 <= n k / m for a box, so the translational bound governs.
+/// frequency omega = sqrt(n k / m), stable for h < 2 / omega. The most contacts a block can
+/// carry is n = A / (sqrt(3)/2 D^2) on its largest face A (particles in close-packed contact),
+/// so m / n = (m / A) (sqrt(3)/2) D^2, and for a box m / A = 2 rho c with c its smallest half
+/// extent: the thinnest block governs. The rule keeps a factor `safety` below the bound:
+///     h_r <= safety * 2 sqrt((m/A)_min (sqrt(3)/2) D^2 / k).
+/// Rotation about a face's centre has omega_rot^2 <= n k / m for a box, so the translational
+/// bound governs.
 struct RigidStepInputs {
-  double min_block_mass = 0.0;      ///< kg
-  double max_face_area = 0.0;       ///< m^2
-  double particle_diameter = 0.0;   ///< D, m
-  double contact_stiffness = 0.0;   ///< k (normal), N/m
-  double safety = 0.2;              ///< fraction of the stability bound used
+  double min_mass_per_face_area = 0.0;  ///< min over blocks of m / (largest face area), kg/m^2
+  double particle_diameter = 0.0;       ///< D, m
+  double contact_stiffness = 0.0;       ///< k (normal), N/m
+  double safety = 0.2;                  ///< fraction of the stability bound used
 };
 double max_rigid_step(const RigidStepInputs& in);
 

@@ -61,10 +61,9 @@ BlockInit block(const Vec3& half, const Vec3& x) {
 }  // namespace
 
 TEST(HybridStep, StabilityRuleAndRefusal) {
-  // The rule: h <= safety * 2 sqrt(m / (n k)), n = A / (sqrt(3)/2 D^2).
+  // The rule: h <= safety * 2 sqrt(m / (n k)), n = A / (sqrt(3)/2 D^2) on the largest face.
   bridge::RigidStepInputs in;
-  in.min_block_mass = 1000.0;
-  in.max_face_area = 2.0;
+  in.min_mass_per_face_area = 1000.0 / 2.0;  // a 1000 kg block whose largest face is 2 m^2
   in.particle_diameter = 0.25;
   in.contact_stiffness = 6.5e5;
   in.safety = 0.2;
