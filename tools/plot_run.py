@@ -10,6 +10,8 @@ Writes, next to RUN.h5 (or in OUTDIR):
   <stem>_pile_height.png  rubble pile height, only if /series/pile_height exists
   <stem>_energy.png       every /series/energy/<name>
   <stem>_bonds.png        bonds broken (and intact bonds, if /series/bonds exists)
+  <stem>_blocks.png       only for runs with rigid blocks (/series/blocks): rigid blocks left,
+                          conversions and particle count; the blocks' share of F_x
 and prints the paths written, one a line. Exit status 0 on success, 1 on a missing/unreadable
 file or a missing required dataset (/series/time), 2 on bad arguments.
 
@@ -133,6 +135,11 @@ class Run:
         self.bonds, _ = series("bonds")
         self.particles, _ = series("particles")
         self.pile_height, self.pile_units = series("pile_height")
+        self.blocks = {}
+        for name in ("count", "conversions", "kinetic_energy", "structure_force", "joints_broken"):
+            data, units = series("blocks/" + name)
+            if data is not None:
+                self.blocks[name] = data
 
         self.scene = {}
         if "scene" in f.attrs:
@@ -321,6 +328,43 @@ def plot_bonds(run, out):
     return _finish(fig, run, os.path.join(out, run.stem + "_bonds.png"))
 
 
+def plot_blocks(run, out):
+    if "count" not in run.blocks:
+        return None
+    t = run.time
+    fig, (ax_n, ax_f) = plt.subplots(2, 1, sharex=True, figsize=(10, 7))
+    cnt = np.asarray(run.blocks["count"], dtype=float).reshape(-1)
+    k = min(t.size, cnt.size)
+    lines = ax_n.plot(t[:k], cnt[:k], color="tab:blue", lw=1.4, label="rigid blocks")
+    if "conversions" in run.blocks:
+        conv = np.asarray(run.blocks["conversions"], dtype=float).reshape(-1)
+        lines += ax_n.plot(t[:k], conv[:k], color="tab:red", lw=1.4, label="conversions")
+    ax_n.set_ylabel("blocks")
+    if run.particles is not None:
+        p = np.asarray(run.particles, dtype=float).reshape(-1)
+        ax2 = ax_n.twinx()
+        lines += ax2.plot(t[:k], p[:k], color="k", lw=1.0, ls="--", label="particles")
+        ax2.set_ylabel("particles")
+    ax_n.legend(lines, [ln.get_label() for ln in lines], fontsize=8, loc="center right")
+    ax_n.grid(True, alpha=0.3)
+    ax_n.set_title("%s: rigid blocks and conversions" % run.name)
+    comps = _force_components(run.force) if run.force is not None else None
+    if comps is not None:
+        fx = comps[0]
+        sign = -1.0 if np.nanmean(fx) < 0 else 1.0
+        ax_f.plot(t[:k], sign * fx[:k] / 1e6, color="k", lw=1.2, label="total (particles + blocks)")
+        if "structure_force" in run.blocks:
+            bf = _force_components(run.blocks["structure_force"])
+            if bf is not None:
+                ax_f.plot(t[:k], sign * bf[0][:k] / 1e6, color="tab:blue", lw=1.0, label="rigid blocks' share")
+        ax_f.set_ylabel("horizontal force on the structure [MN]")
+        ax_f.legend(fontsize=8)
+    ax_f.grid(True, alpha=0.3)
+    ax_f.set_xlabel(_time_label(run))
+    fig.tight_layout()
+    return _finish(fig, run, os.path.join(out, run.stem + "_blocks.png"))
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(
         prog="plot_run.py",
@@ -348,7 +392,8 @@ def main(argv=None):
     for plot in (lambda: plot_force(run, out, args.show_parts),
                  lambda: plot_pile_height(run, out),
                  lambda: plot_energy(run, out),
-                 lambda: plot_bonds(run, out)):
+                 lambda: plot_bonds(run, out),
+                 lambda: plot_blocks(run, out)):
         try:
             path = plot()
         except OSError as e:
