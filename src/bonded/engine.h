@@ -85,6 +85,14 @@ class ForceSource {
   virtual ForceSourceResult add_forces(ParticleStore& ps, std::size_t n_owned, const ForceSourceContext& ctx) = 0;
   /// For diagnostics ("contact overlap ... between particle 12 and <name>").
   virtual const char* name() const { return "an external force source"; }
+  /// MPI migration of per-particle state (e.g. tangential springs), so that it travels with its
+  /// particle as the engine's own contact history does. pack_history: for every particle in
+  /// `leaving` (global id -> destination rank) append its records to out[rank] (the source's own
+  /// byte format) and forget them here. unpack_history: take records that pack_history wrote on
+  /// another rank. Every rank must register the same sources in the same order. A source without
+  /// per-particle state keeps the defaults (nothing travels).
+  virtual void pack_history(const std::unordered_map<GlobalId, int>& /*leaving*/, std::vector<par::Bytes>& /*out*/) {}
+  virtual void unpack_history(const char* /*data*/, std::size_t /*size*/) {}
 };
 
 /// How the engine spreads over MPI ranks (docs/parallel.md).
