@@ -6,7 +6,8 @@
 //   * a bond lives on the rank owning its lower global id (gi), and migrates with that particle;
 //   * a contact pair of an owned and a ghost particle is computed by the rank owning the lower
 //     global id; its tangential history migrates with that particle;
-//   * plane-wall and mesh-wall contact history migrates with its particle.
+//   * plane-wall and mesh-wall contact history migrates with its particle, and so does the
+//     per-particle state of force sources (ForceSource::pack_history).
 // Forces that a rank computes on its ghosts are sent back to their owners after every force
 // evaluation ("reverse communication"), so integration only ever touches owned particles.
 #include "engine.h"
@@ -303,7 +304,11 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
       ++nmesh[l->second];
       it = meshes_[k].history.erase(it);
     }
+  std::vector<std::vector<Bytes>> src_out(sources_.size(), std::vector<Bytes>(np));
+  if (any_leave)
+    for (std::size_t k = 0; k < sources_.size(); ++k) sources_[k]->pack_history(leaving, src_out[k]);
   // Assemble: [n particles][particles][n bonds][bonds][n hist][hist][n mesh][mesh]
+  //           then per force source: [n bytes][bytes]
   std::vector<Bytes> msg(np);
   for (int r = 0; r < np; ++r) {
     if (r == me) continue;
@@ -316,6 +321,10 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     m.insert(m.end(), hist_out[r].begin(), hist_out[r].end());
     put(m, nmesh[r]);
     m.insert(m.end(), mesh_out[r].begin(), mesh_out[r].end());
+    for (const auto& so : src_out) {
+      put(m, static_cast<std::uint64_t>(so[r].size()));
+      m.insert(m.end(), so[r].begin(), so[r].end());
+    }
   }
   // Remove the leavers.
   if (any_leave) {
@@ -364,6 +373,12 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     for (std::uint32_t q = 0; q < nm; ++q) {
       const auto w = rd.get<MeshHistWire>();
       meshes_.at(w.mesh).history[MeshWall::Key{w.gid, w.feature}] = w.xi;
+    }
+    for (ForceSource* src : sources_) {
+      const auto len = static_cast<std::size_t>(rd.get<std::uint64_t>());
+      if (rd.pos + len > in[k].size()) throw std::logic_error("hs::bonded: truncated MPI message");
+      if (len > 0) src->unpack_history(in[k].data() + rd.pos, len);
+      rd.pos += len;
     }
     if (!rd.done()) throw std::logic_error("hs::bonded: malformed migration message");
   }

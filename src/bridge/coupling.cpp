@@ -15,6 +15,11 @@ void ImpulseCoupler::add(std::size_t k, const Vec3& j, const Vec3& p, const Vec3
   angular_[k] += (p - block_centre).cross(j);
 }
 
+void ImpulseCoupler::add_about_centre(std::size_t k, const Vec3& j, const Vec3& h) {
+  linear_[k] += j;
+  angular_[k] += h;
+}
+
 std::size_t ImpulseCoupler::sum_and_apply(const par::Comm& comm, rigid::RigidWorld& world) {
   const int n = static_cast<int>(3 * blocks_.size());
   if (n > 0) {

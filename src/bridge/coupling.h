@@ -21,6 +21,9 @@ class ImpulseCoupler {
   void reset(const std::vector<rigid::BlockId>& blocks);
   /// Adds an impulse j (N s) at the world point p on block k (index into the reset() list).
   void add(std::size_t k, const Vec3& j, const Vec3& p, const Vec3& block_centre);
+  /// Adds an impulse j (N s) through block k's centre and an angular impulse h (N m s) about it,
+  /// e.g. what BlockContact accumulated on this rank (block_contact.h).
+  void add_about_centre(std::size_t k, const Vec3& j, const Vec3& h);
   /// Sums the accumulators over the ranks (collective) and applies them to `world`, then clears.
   /// Returns the number of blocks that received an impulse.
   std::size_t sum_and_apply(const par::Comm& comm, rigid::RigidWorld& world);

@@ -1,6 +1,8 @@
 // The decomposition's geometry and balance, and the replicated rigid world under MPI: every rank
 // steps its own copy; impulses found on different ranks are summed and applied identically.
+#include "bridge/block_contact.h"
 #include "bridge/coupling.h"
+#include "bonded/engine.h"
 #include "parallel/comm.h"
 #include "parallel/decomposition.h"
 #include "rigid/rigid_world.h"
@@ -87,6 +89,123 @@ TEST(ParallelRigid, ReplicatedWorldsStayBitIdenticalWithImpulsesSummedOverRanks)
   EXPECT_EQ(spread, 0.0) << "the replicated copies must be bit-identical";
   EXPECT_LT(vs_serial, 1e-9);
   EXPECT_GT((dist.position(ids[0]) - Vec3(0, 0, 0)).norm(), 0.01) << "the impulses must move the blocks";
+}
+
+
+TEST(ParallelRigid, BlockContactOnRanksMatchesSerialWithHistoryTravellingAcrossCuts) {
+  // 12 x 4 spheres rolling down the top face of an immovable block tilted 0.1 rad (static
+  // friction, so the tangential springs carry 2/7 m g sin 0.1 all the time), the engine spread over
+  // the ranks along x: spheres cross the cuts, and their springs must travel with them. Each
+  // rank's BlockContact sees only the particles it owns; the shares, summed over the ranks
+  // (ImpulseCoupler), are the serial load and move a replicated rigid block identically.
+  const par::Comm& comm = test_world();
+  const double D = 0.5, rho = 920.0, E = 1e9, g = 9.81, tilt = 0.1;
+  const double kn = kPi * E * D / 12.0, m = rho * kPi * D * D * D / 6.0;
+  bonded::EngineDef d;
+  d.gravity = Vec3(0, 0, -g);
+  d.youngs_modulus = E;
+  d.density = rho;
+  d.contact.kn = d.contact.kt = kn;
+  d.contact.zeta_n = d.contact.zeta_t = bonded::damping_ratio_from_restitution(0.3);
+  d.contact.mu = 0.3;
+  const Quat ori(Eigen::AngleAxisd(tilt, Vec3::UnitY()));  // the face descends towards +x
+  const Mat3 R = ori.toRotationMatrix();
+  const Vec3 centre(0.0, 0.0, -0.5), he(6.0, 2.0, 0.5);
+  auto build = [&](bonded::Engine& e, bridge::BlockContact& bc) {
+    bridge::ContactBlock b;
+    b.id = 5;
+    b.half_extents = he;
+    b.position = centre;
+    b.orientation = ori;
+    b.friction = 0.3;
+    bc.add_block(b);
+    e.add_force_source(&bc);
+    const Vec3 n = R.col(2);
+    for (int iy = 0; iy < 4; ++iy)
+      for (int ix = 0; ix < 12; ++ix) {
+        bonded::ParticleInit p;
+        const Vec3 local(-3.5 + 0.51 * ix, -0.75 + 0.51 * iy, he.z() + 0.5 * D - m * g * std::cos(tilt) / kn);
+        p.x = centre + R * local;
+        p.v = R * Vec3(3.0, 0.0, 0.0);
+        p.omega = n.cross(p.v) / (0.5 * D);  // rolling
+        p.radius = 0.5 * D;
+        p.mass = m;
+        e.add_particle(p);
+      }
+  };
+  bonded::Engine serial(d), dist(d);
+  bridge::BlockContact bs, bd;
+  build(serial, bs);
+  build(dist, bd);
+  dist.distribute(comm);
+  for (int s = 0; s < 2000; ++s) {
+    serial.step();
+    dist.step();
+  }
+  // Trajectories: every owned particle against its serial twin.
+  double dx = 0.0;
+  const auto& pd = dist.particles();
+  const auto& ps = serial.particles();
+  for (std::size_t i = 0; i < pd.owned(); ++i)
+    dx = std::max(dx, (pd.x[i] - ps.x[ps.local(pd.gid[i])]).norm());
+  dx = comm.max(dx);
+  const double migrated = comm.sum(static_cast<double>(dist.parallel_stats().migrated));
+  // Loads: the ranks' shares summed.
+  const bridge::BlockLoad& ls = bs.load(0);
+  const bridge::BlockLoad& ld = bd.load(0);
+  double v[13] = {ld.force.x(), ld.force.y(), ld.force.z(), ld.torque.x(), ld.torque.y(), ld.torque.z(),
+                  ld.impulse.x(), ld.impulse.y(), ld.impulse.z(), ld.angular_impulse.x(),
+                  ld.angular_impulse.y(), ld.angular_impulse.z(), static_cast<double>(ld.contacts)};
+  const double mine = v[12];
+  comm.sum(v, 13);
+  const Vec3 F(v[0], v[1], v[2]), T(v[3], v[4], v[5]), J(v[6], v[7], v[8]), H(v[9], v[10], v[11]);
+  const double eF = (F - ls.force).norm() / ls.force.norm(), eT = (T - ls.torque).norm() / ls.torque.norm();
+  const double eJ = (J - ls.impulse).norm() / ls.impulse.norm();
+  const double eH = (H - ls.angular_impulse).norm() / ls.angular_impulse.norm();
+  // The impulses into a replicated rigid block (free, no water, no gravity) through the coupler.
+  rigid::RigidWorldDef wd;
+  wd.water = false;
+  wd.gravity = Vec3::Zero();
+  rigid::BlockDef blk;
+  blk.half_extents = he;
+  blk.position = centre;
+  blk.orientation = ori;
+  rigid::RigidWorld wdist(wd), wser(wd);
+  const rigid::BlockId idd = wdist.add_block(blk), ids = wser.add_block(blk);
+  bridge::ImpulseCoupler cd, cs;
+  cd.reset({idd});
+  cs.reset({ids});
+  cd.add_about_centre(0, ld.impulse, ld.angular_impulse);
+  cs.add_about_centre(0, ls.impulse, ls.angular_impulse);
+  cd.sum_and_apply(comm, wdist);
+  cs.sum_and_apply(par::serial(), wser);
+  wdist.substep();
+  wser.substep();
+  const Vec3 vd = wdist.velocity(idd), wdv = wdist.angular_velocity(idd);
+  double spread = 0.0;
+  for (int a = 0; a < 3; ++a)
+    spread = std::max({spread, comm.max(vd[a]) + comm.max(-vd[a]), comm.max(wdv[a]) + comm.max(-wdv[a])});
+  const double ev = (vd - wser.velocity(ids)).norm() / wser.velocity(ids).norm();
+  const double ew = (wdv - wser.angular_velocity(ids)).norm() / wser.angular_velocity(ids).norm();
+  if (comm.rank() == 0)
+    std::printf("block contact over %d ranks, 2000 steps, %.0f migrations (%.0f of %.0f contacts on rank 0): "
+                "max |x - x_serial| %.1e m; summed shares vs serial, relative: force %.1e, torque %.1e, impulse "
+                "%.1e, angular impulse %.1e; rigid block after the coupler: velocity %.1e, angular velocity "
+                "%.1e, spread over ranks %.1e\n",
+                comm.size(), migrated, mine, v[12], dx, eF, eT, eJ, eH, ev, ew, spread);
+  if (comm.size() > 1) {
+    EXPECT_GT(migrated, 0.0) << "the test must move particles across a cut";
+  }
+  EXPECT_LT(dx, 1e-9);
+  EXPECT_EQ(static_cast<std::size_t>(v[12]), ls.contacts);
+  EXPECT_EQ(ls.contacts, 48u);
+  EXPECT_LT(eF, 1e-9);
+  EXPECT_LT(eT, 1e-9);
+  EXPECT_LT(eJ, 1e-9);
+  EXPECT_LT(eH, 1e-9);
+  EXPECT_LT(ev, 1e-9);
+  EXPECT_LT(ew, 1e-9);
+  EXPECT_EQ(spread, 0.0) << "the replicated copies must be bit-identical";
 }
 
 }  // namespace

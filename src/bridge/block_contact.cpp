@@ -1,0 +1,311 @@
+#include "block_contact.h"
+
+#include "common/error.h"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
+
+namespace hs::bridge {
+
+namespace {
+
+/// Closest-feature geometry of a sphere centre against a box (see the header).
+struct BoxContact {
+  double delta;  ///< overlap, m (> 0 in contact)
+  Vec3 n;        ///< unit normal, world, from the box to the sphere
+};
+
+/// l: sphere centre in the block frame; h: half extents; R: body -> world. Returns false when the
+/// sphere (radius r) cannot touch the box.
+inline bool box_contact(const Vec3& l, const Vec3& h, const Mat3& R, double r, BoxContact& out) {
+  const Vec3 q = l.cwiseMax(-h).cwiseMin(h);
+  const Vec3 d = l - q;
+  const double d2 = d.squaredNorm();
+  if (d2 > 0.0) {  // outside: face, edge or corner
+    if (d2 >= r * r) return false;
+    const double dist = std::sqrt(d2);
+    out.delta = r - dist;
+    out.n = R * (d / dist);
+    return true;
+  }
+  // Centre inside (or on) the box: out through the nearest face.
+  int k = 0;
+  double depth = h.x() - std::abs(l.x());
+  for (int a = 1; a < 3; ++a) {
+    const double da = h[a] - std::abs(l[a]);
+    if (da < depth) {
+      depth = da;
+      k = a;
+    }
+  }
+  out.delta = r + depth;
+  out.n = (l[k] < 0.0 ? -1.0 : 1.0) * R.col(k);
+  return true;
+}
+
+}  // namespace
+
+std::size_t BlockContact::add_block(const ContactBlock& b) {
+  auto bad = [](const std::string& what) { throw InputError("block", what); };
+  for (int a = 0; a < 3; ++a)
+    if (!(b.half_extents[a] > 0.0) || !std::isfinite(b.half_extents[a]))
+      bad("half extents must be positive and finite");
+  if (!(b.mass > 0.0)) bad("mass must be > 0 kg (INFINITY for an immovable block)");
+  if (!(b.friction >= 0.0) || !std::isfinite(b.friction)) bad("friction must be a finite number >= 0");
+  if (!(b.orientation.squaredNorm() > 0.0)) bad("orientation quaternion must be non-zero");
+  for (const auto& o : blocks_)
+    if (o.id == b.id) {
+      std::ostringstream s;
+      s << "duplicate block id " << b.id;
+      bad(s.str());
+    }
+  blocks_.push_back(b);
+  blocks_.back().orientation.normalize();
+  loads_.emplace_back();
+  return blocks_.size() - 1;
+}
+
+void BlockContact::remove_block(std::size_t k) {
+  blocks_.erase(blocks_.begin() + static_cast<std::ptrdiff_t>(k));
+  loads_.erase(loads_.begin() + static_cast<std::ptrdiff_t>(k));
+}
+
+void BlockContact::clear() {
+  blocks_.clear();
+  loads_.clear();
+  history_.clear();
+  next_history_.clear();
+}
+
+void BlockContact::set_state(std::size_t k, const Vec3& position, const Quat& orientation,
+                             const Vec3& velocity, const Vec3& angular_velocity) {
+  ContactBlock& b = blocks_[k];
+  b.position = position;
+  b.orientation = orientation.normalized();
+  b.velocity = velocity;
+  b.angular_velocity = angular_velocity;
+}
+
+void BlockContact::clear_impulses() {
+  for (auto& l : loads_) {
+    l.impulse.setZero();
+    l.angular_impulse.setZero();
+  }
+}
+
+void BlockContact::build_grid(double r_max, std::size_t n_particles) {
+  const std::size_t nb = blocks_.size();
+  rot_.resize(nb);
+  std::vector<Vec3> lo(nb), hi(nb);
+  Vec3 glo = Vec3::Constant(INFINITY), ghi = Vec3::Constant(-INFINITY);
+  double mean_size = 0.0;
+  for (std::size_t k = 0; k < nb; ++k) {
+    const ContactBlock& b = blocks_[k];
+    rot_[k] = b.orientation.toRotationMatrix();
+    // World AABB of the box, grown by the largest radius: |R| h.
+    const Vec3 e = rot_[k].cwiseAbs() * b.half_extents + Vec3::Constant(r_max);
+    lo[k] = b.position - e;
+    hi[k] = b.position + e;
+    glo = glo.cwiseMin(lo[k]);
+    ghi = ghi.cwiseMax(hi[k]);
+    mean_size += 2.0 * e.maxCoeff();
+  }
+  mean_size /= static_cast<double>(nb);
+  // Cells half the mean block size (in the broad-phase test a particle is then tested against 1.7
+  // blocks instead of 4.1 with block-sized cells: 46 instead of 72 ns per particle), but no more
+  // cells than 4 per block plus 1 per 2 particles however far apart the blocks lie.
+  const Vec3 ext = (ghi - glo).cwiseMax(Vec3::Constant(1e-12));
+  double h = 0.5 * mean_size;
+  while ((std::floor(ext.x() / h) + 1) * (std::floor(ext.y() / h) + 1) * (std::floor(ext.z() / h) + 1) >
+         4.0 * static_cast<double>(nb) + 0.5 * static_cast<double>(n_particles) + 27.0)
+    h *= 1.26;
+  grid_lo_ = glo;
+  grid_h_ = h;
+  nx_ = static_cast<int>(ext.x() / h) + 1;
+  ny_ = static_cast<int>(ext.y() / h) + 1;
+  nz_ = static_cast<int>(ext.z() / h) + 1;
+  const std::size_t ncells = static_cast<std::size_t>(nx_) * ny_ * nz_;
+  auto coord = [&](double x, double o, int n) { return std::clamp(static_cast<int>((x - o) / h), 0, n - 1); };
+  // Two passes (count, fill): blocks listed in increasing k in every cell (deterministic order).
+  cell_start_.assign(ncells + 1, 0);
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<std::uint32_t> fill;
+    if (pass == 1) {
+      for (std::size_t c = 0; c < ncells; ++c) cell_start_[c + 1] += cell_start_[c];
+      cell_blocks_.resize(cell_start_[ncells]);
+      fill.assign(cell_start_.begin(), cell_start_.end() - 1);
+    }
+    for (std::size_t k = 0; k < nb; ++k) {
+      const int x0 = coord(lo[k].x(), glo.x(), nx_), x1 = coord(hi[k].x(), glo.x(), nx_);
+      const int y0 = coord(lo[k].y(), glo.y(), ny_), y1 = coord(hi[k].y(), glo.y(), ny_);
+      const int z0 = coord(lo[k].z(), glo.z(), nz_), z1 = coord(hi[k].z(), glo.z(), nz_);
+      for (int z = z0; z <= z1; ++z)
+        for (int y = y0; y <= y1; ++y)
+          for (int x = x0; x <= x1; ++x) {
+            const std::size_t c = (static_cast<std::size_t>(z) * ny_ + y) * nx_ + x;
+            if (pass == 0)
+              ++cell_start_[c + 1];
+            else
+              cell_blocks_[fill[c]++] = static_cast<std::uint32_t>(k);
+          }
+    }
+  }
+  stats_.grid_cells = ncells;
+}
+
+bonded::ForceSourceResult BlockContact::add_forces(bonded::ParticleStore& ps, std::size_t n_owned,
+                                                   const bonded::ForceSourceContext& ctx) {
+  const auto t0 = std::chrono::steady_clock::now();
+  bonded::ForceSourceResult res;
+  for (auto& l : loads_) {
+    l.force.setZero();
+    l.torque.setZero();
+    l.contacts = 0;
+  }
+  next_history_.clear();
+  next_history_.reserve(history_.size());
+  stats_.candidates = 0;
+  stats_.tests = 0;
+  if (blocks_.empty() || n_owned == 0) {
+    history_.clear();
+    stats_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    return res;
+  }
+  double r_max = 0.0;
+  for (std::size_t i = 0; i < n_owned; ++i) r_max = std::max(r_max, ps.radius[i]);
+  build_grid(r_max, n_owned);
+
+  const bonded::EngineDef& def = ctx.def;
+  const bool linear = def.contact_model == bonded::ContactModel::LinearSpringDashpot;
+  const double hdt = ctx.history_dt;
+  const double h = grid_h_;
+  const Vec3 glo = grid_lo_;
+  for (std::size_t i = 0; i < n_owned; ++i) {
+    if (ps.inv_mass[i] == 0.0) continue;
+    const Vec3& x = ps.x[i];
+    const Vec3 s = (x - glo) / h;
+    if (s.x() < 0.0 || s.y() < 0.0 || s.z() < 0.0) continue;
+    const int cx = static_cast<int>(s.x()), cy = static_cast<int>(s.y()), cz = static_cast<int>(s.z());
+    if (cx >= nx_ || cy >= ny_ || cz >= nz_) continue;
+    const std::size_t c = (static_cast<std::size_t>(cz) * ny_ + cy) * nx_ + cx;
+    const double r = ps.radius[i];
+    stats_.tests += cell_start_[c + 1] - cell_start_[c];
+    for (std::uint32_t e = cell_start_[c]; e < cell_start_[c + 1]; ++e) {
+      const std::uint32_t k = cell_blocks_[e];
+      const ContactBlock& b = blocks_[k];
+      const Mat3& R = rot_[k];
+      const Vec3 rel = x - b.position;
+      const Vec3 l = R.transpose() * rel;
+      if (std::abs(l.x()) >= b.half_extents.x() + r || std::abs(l.y()) >= b.half_extents.y() + r ||
+          std::abs(l.z()) >= b.half_extents.z() + r)
+        continue;
+      ++stats_.candidates;
+      BoxContact bc;
+      if (!box_contact(l, b.half_extents, R, r, bc)) continue;
+      const double delta = bc.delta;
+      const Vec3& n = bc.n;
+      const Vec3 a = -(r - 0.5 * delta) * n;  // contact point from the sphere centre
+      const Vec3 arm = rel + a;                // contact point from the block centre
+      const Vec3 vrel = ps.v[i] + ps.omega[i].cross(a) - b.velocity - b.angular_velocity.cross(arm);
+      const double vn = vrel.dot(n);
+      const Vec3 vt = vrel - vn * n;
+      const double m = ps.mass[i];
+      const double m_eff = std::isinf(b.mass) ? m : m * b.mass / (m + b.mass);
+      const Key key{ps.gid[i], b.id};
+      auto it = history_.find(key);
+      Vec3 xi = it == history_.end() ? Vec3::Zero() : it->second;
+      bonded::ContactResult cr;
+      if (linear) {
+        bonded::LinearContactParams p = def.contact;
+        p.mu = b.friction;
+        cr = bonded::linear_contact(p, delta, n, vn, vt, m_eff, hdt, xi);
+      } else {
+        bonded::HertzContactParams p = def.hertz;
+        p.mu = b.friction;
+        cr = bonded::hertz_contact(p, delta, r, n, vn, vt, m_eff, hdt, xi);
+      }
+      next_history_.emplace(key, xi);
+      const Vec3& F = cr.force;
+      ps.f[i] += F;
+      ps.torque[i] += a.cross(F);
+      BlockLoad& L = loads_[k];
+      L.force -= F;
+      L.torque -= arm.cross(F);
+      ++L.contacts;
+      if (delta / r > res.worst_overlap_ratio) {
+        res.worst_overlap_ratio = delta / r;
+        res.worst_particle = static_cast<std::uint32_t>(i);
+      }
+    }
+  }
+  if (hdt > 0.0)
+    for (auto& L : loads_) {
+      L.impulse += hdt * L.force;
+      L.angular_impulse += hdt * L.torque;
+    }
+  history_.swap(next_history_);
+  stats_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return res;
+}
+
+namespace {
+struct HistWire {
+  GlobalId gid;
+  std::uint64_t block;
+  Vec3 xi;
+};
+}  // namespace
+
+void BlockContact::pack_history(const std::unordered_map<GlobalId, int>& leaving, std::vector<par::Bytes>& out) {
+  for (auto it = history_.begin(); it != history_.end();) {
+    const auto l = leaving.find(it->first.gid);
+    if (l == leaving.end()) {
+      ++it;
+      continue;
+    }
+    const HistWire w{it->first.gid, it->first.block, it->second};
+    par::Bytes& b = out[static_cast<std::size_t>(l->second)];
+    const std::size_t o = b.size();
+    b.resize(o + sizeof(HistWire));
+    std::memcpy(b.data() + o, &w, sizeof(HistWire));  // same binary on every rank
+    it = history_.erase(it);
+  }
+}
+
+void BlockContact::unpack_history(const char* data, std::size_t size) {
+  if (size % sizeof(HistWire) != 0) throw std::logic_error("BlockContact: malformed history message");
+  for (std::size_t o = 0; o < size; o += sizeof(HistWire)) {
+    HistWire w;
+    std::memcpy(static_cast<void*>(&w), data + o, sizeof(HistWire));
+    history_[Key{w.gid, w.block}] = w.xi;
+  }
+}
+
+double BlockContact::elastic_energy(const bonded::ParticleStore& ps, std::size_t n_owned,
+                                    const bonded::EngineDef& def) const {
+  double e = 0.0;
+  for (std::size_t i = 0; i < n_owned; ++i) {
+    const double r = ps.radius[i];
+    for (const ContactBlock& b : blocks_) {
+      const Mat3 R = b.orientation.toRotationMatrix();
+      const Vec3 l = R.transpose() * (ps.x[i] - b.position);
+      BoxContact bc;
+      if (!box_contact(l, b.half_extents, R, r, bc)) continue;
+      auto it = history_.find(Key{ps.gid[i], b.id});
+      const Vec3 xi = it == history_.end() ? Vec3::Zero() : it->second;
+      if (def.contact_model == bonded::ContactModel::LinearSpringDashpot) {
+        e += bonded::linear_contact_energy(def.contact, bc.delta, xi);
+      } else {
+        const double st = 8.0 * def.hertz.g_star * std::sqrt(r * bc.delta);
+        e += bonded::hertz_contact_energy(def.hertz, bc.delta, r) + 0.5 * st * xi.squaredNorm();
+      }
+    }
+  }
+  return e;
+}
+
+}  // namespace hs::bridge
