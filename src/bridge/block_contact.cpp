@@ -168,6 +168,7 @@ bonded::ForceSourceResult BlockContact::add_forces(bonded::ParticleStore& ps, st
   }
   next_history_.clear();
   next_history_.reserve(history_.size());
+  if (record_) recorded_.clear();
   stats_.candidates = 0;
   stats_.tests = 0;
   if (blocks_.empty() || n_owned == 0) {
@@ -236,6 +237,7 @@ bonded::ForceSourceResult BlockContact::add_forces(bonded::ParticleStore& ps, st
       L.force -= F;
       L.torque -= arm.cross(F);
       ++L.contacts;
+      if (record_) recorded_.push_back({static_cast<std::uint32_t>(k), b.position + arm, -F});
       if (delta / r > res.worst_overlap_ratio) {
         res.worst_overlap_ratio = delta / r;
         res.worst_particle = static_cast<std::uint32_t>(i);

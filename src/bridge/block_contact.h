@@ -89,6 +89,14 @@ class BlockContact final : public bonded::ForceSource {
                  const Vec3& angular_velocity);
 
   const BlockLoad& load(std::size_t k) const { return loads_[k]; }
+  /// With recording on, every force evaluation also keeps each contact's force on the block and
+  /// its world point (for the flexural stress estimate, block_stress.h), replacing the last ones.
+  struct PointForce {
+    std::uint32_t block;  ///< block index k
+    Vec3 point, force;    ///< world contact point (m), force on the block (N)
+  };
+  void set_recording(bool on) { record_ = on; }
+  const std::vector<PointForce>& recorded() const { return recorded_; }
   /// Zeroes every block's accumulated impulse (the stepper, after pouring them into the rigid world).
   void clear_impulses();
   const BlockContactStats& stats() const { return stats_; }
@@ -121,6 +129,8 @@ class BlockContact final : public bonded::ForceSource {
   std::vector<BlockLoad> loads_;
   std::unordered_map<Key, Vec3, KeyHash> history_, next_history_;  ///< tangential springs
   BlockContactStats stats_;
+  bool record_ = false;
+  std::vector<PointForce> recorded_;
   // Block grid (rebuilt every call: O(blocks)): cell -> blocks whose box, grown by r_max, meets it.
   Vec3 grid_lo_ = Vec3::Zero();
   double grid_h_ = 1.0;

@@ -1,5 +1,7 @@
 #include "bridge/hybrid.h"
 
+#include "bridge/block_contact.h"
+
 #include "common/error.h"
 
 #include <algorithm>
@@ -45,6 +47,36 @@ struct HybridSystem::Impl {
   std::uint64_t since_rigid = 0;  ///< DEM steps since the last rigid step
   ImpulseCoupler coupler;
   std::vector<Vec3> no_parts;
+  // Particle-block contact. Block k of `contact` is world block ids[k]; `ids` is always the
+  // world's block list (slot order), which is also the coupler's order.
+  BlockContact contact;
+  bool contact_registered = false;
+  std::vector<rigid::BlockId> ids;
+  struct Ref {
+    Vec3 x, v, w;
+    Quat q;
+  };
+  std::vector<Ref> ref;  ///< block states at the last rigid step (time t_ref)
+  double t_ref = 0.0;
+
+  /// Reads every block's state from the world as the new kinematic reference.
+  void take_reference(const rigid::RigidWorld& w) {
+    ref.resize(ids.size());
+    for (std::size_t k = 0; k < ids.size(); ++k)
+      ref[k] = {w.position(ids[k]), w.velocity(ids[k]), w.angular_velocity(ids[k]), w.orientation(ids[k])};
+    t_ref = w.time();
+  }
+  /// Moves the blocks the particles see to time t: x = x_r + v (t - t_r), q = exp(w (t - t_r)) q_r.
+  void extrapolate(double t) {
+    const double tau = t - t_ref;
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      const Ref& r = ref[k];
+      Quat q = r.q;
+      const double angle = r.w.norm() * tau;
+      if (angle > 0.0) q = (Quat(Eigen::AngleAxisd(angle, r.w.normalized())) * r.q).normalized();
+      contact.set_state(k, r.x + tau * r.v, q, r.v, r.w);
+    }
+  }
 };
 
 HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const std::vector<BlockInit>& blocks,
@@ -107,15 +139,42 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
     world_->add_freeze_joint(rigid::FreezeJointDef{ids.at(j.a), ids.at(j.b), j.anchor, j.normal, j.area});
   report_.blocks_now = world_->block_count();
   m.coupler.reset(world_->blocks());
+  m.ids = world_->blocks();
+  for (std::size_t k = 0; k < m.ids.size(); ++k) {
+    const rigid::BlockId id = m.ids[k];
+    ContactBlock cb;
+    cb.id = (static_cast<std::uint64_t>(id.generation) << 32) | id.index;
+    cb.half_extents = world_->half_extents(id);
+    cb.position = world_->position(id);
+    cb.orientation = world_->orientation(id);
+    cb.velocity = world_->velocity(id);
+    cb.angular_velocity = world_->angular_velocity(id);
+    cb.mass = world_->fixed(id) ? INFINITY : world_->mass(id);
+    cb.friction = def.block_friction;
+    m.contact.add_block(cb);
+  }
+  m.take_reference(*world_);
+  engine.add_force_source(&m.contact);
+  m.contact_registered = true;
   if (def.mode == ConversionMode::AllAtStart)
     for (const rigid::BlockId id : world_->blocks())
       if (!world_->fixed(id)) convert(id);
 }
 
-HybridSystem::~HybridSystem() = default;
+HybridSystem::~HybridSystem() {
+  if (impl_ && impl_->contact_registered) engine_.remove_force_source(&impl_->contact);
+}
 
 void HybridSystem::step() {
   Impl& m = *impl_;
+  if (world_) {
+    // Forces of this step are evaluated at its end: blocks where they will be then.
+    const auto tb = Clock::now();
+    m.extrapolate(engine_.time() + engine_.dt());
+    const bool last_before_rigid = m.since_rigid + 1 >= report_.steps_per_rigid_step;
+    m.contact.set_recording(last_before_rigid && m.def.mode == ConversionMode::Hybrid);
+    report_.seconds_bridge += seconds_since(tb);
+  }
   const auto t0 = Clock::now();
   engine_.step();
   report_.seconds_bonded += seconds_since(t0);
@@ -123,11 +182,18 @@ void HybridSystem::step() {
   if (++m.since_rigid < report_.steps_per_rigid_step) return;
   m.since_rigid = 0;
   const auto t1 = Clock::now();
+  for (std::size_t k = 0; k < m.ids.size(); ++k) {
+    const BlockLoad& L = m.contact.load(k);
+    if (!L.impulse.isZero(0.0) || !L.angular_impulse.isZero(0.0))
+      m.coupler.add_about_centre(k, L.impulse, L.angular_impulse);
+  }
+  m.contact.clear_impulses();
   m.coupler.sum_and_apply(engine_.comm(), *world_);
   report_.seconds_bridge += seconds_since(t1);
   const auto t2 = Clock::now();
   world_->substep();
   ++report_.rigid_steps;
+  m.take_reference(*world_);
   report_.seconds_rigid += seconds_since(t2);
   if (m.def.mode == ConversionMode::Hybrid) {
     const auto t3 = Clock::now();
@@ -145,6 +211,12 @@ void HybridSystem::apply_policy() {
                                     m.def.world.freeze_bond_shear_strength < 0.0
                                         ? m.def.world.freeze_bond_strength
                                         : m.def.world.freeze_bond_shear_strength};
+  // Particle contact forces on each block in the last force evaluation (recorded by BlockContact).
+  std::vector<std::vector<PointLoad>> particle_loads(m.ids.size());
+  for (const auto& pf : m.contact.recorded()) particle_loads[pf.block].push_back({pf.point, pf.force});
+  auto k_of = [&](rigid::BlockId id) {
+    return static_cast<std::size_t>(std::find(m.ids.begin(), m.ids.end(), id) - m.ids.begin());
+  };
   std::vector<rigid::BlockId> to_convert;
   std::vector<bool> by_freeze;
   std::vector<FreezeJointSample> joints;
@@ -160,6 +232,7 @@ void HybridSystem::apply_policy() {
     }
     loads.clear();
     for (const auto& c : world_->contact_forces(id)) loads.push_back({c.point, c.force});
+    for (const auto& pf : particle_loads[k_of(id)]) loads.push_back(pf);
     const FreezeBondEstimate fe = freeze_bond_estimate(joints, strength);
     const FlexureEstimate fl =
         flexure_estimate(BlockBox{half, x, world_->orientation(id)}, loads, m.def.flexural_strength);
@@ -187,6 +260,11 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
   b.mass = world_->mass(id);
   const ConversionReport r = convert_block(engine_, b, m.def.ice);
   report_.joints_released += world_->joints_of(id).size();
+  const auto it = std::find(m.ids.begin(), m.ids.end(), id);
+  const std::size_t k = static_cast<std::size_t>(it - m.ids.begin());
+  m.contact.remove_block(k);
+  m.ids.erase(it);
+  m.ref.erase(m.ref.begin() + static_cast<std::ptrdiff_t>(k));
   world_->remove_block(id);
   m.coupler.reset(world_->blocks());
   ++report_.conversions;
