@@ -1,6 +1,7 @@
 #include "app/hybrid_setup.h"
 
 #include "common/error.h"
+#include "mesh/pier.h"
 #include "rigid/ridge_io.h"
 
 #include <cmath>
@@ -31,6 +32,7 @@ HybridSetup hybrid_setup(const scene::Scene& s) {
   w.freeze_bond_strength = s.bonds.freeze_tensile_strength;
   w.freeze_bond_shear_strength = s.bonds.freeze_shear_strength;
   d.safety_factor = b.safety_factor;
+  d.stress_time_constant = b.stress_time_constant;
   d.flexural_strength = b.flexural_strength > 0.0 ? b.flexural_strength : s.analysis.flexural_strength;
   if (!s.has_blocks) return out;
   {
@@ -97,8 +99,43 @@ HybridSetup hybrid_setup(const scene::Scene& s) {
     }
   }
   for (const auto& it : b.list) add(it.half_extents, it.position, it.orientation, it.velocity, it.angular_velocity);
+  // Blocks that start inside the structure would be pushed out violently (or, as particles,
+  // stop the run): a parametric pier is a solid of revolution, so a block is dropped when its
+  // bounding sphere reaches inside the pier's radius at any height it spans.
+  if (s.has_structure && s.structure.type == "pier") {
+    std::vector<bridge::BlockInit> kept;
+    std::vector<long> index(out.blocks.size(), -1);
+    std::size_t dropped = 0;
+    for (std::size_t k = 0; k < out.blocks.size(); ++k) {
+      const auto& bd = out.blocks[k].def;
+      const Vec3 rel = bd.position - s.structure.position;
+      const double R = bd.half_extents.norm();
+      double r_pier = 0.0;
+      for (int q = -4; q <= 4; ++q) r_pier = std::max(r_pier, mesh::pier_radius_at(s.structure.pier, rel.z() + 0.25 * q * R));
+      if (std::hypot(rel.x(), rel.y()) < r_pier + R) {
+        ++dropped;
+        continue;
+      }
+      index[k] = static_cast<long>(kept.size());
+      kept.push_back(out.blocks[k]);
+    }
+    if (dropped) {
+      std::vector<bridge::JointInit> joints;
+      for (auto j : out.joints)
+        if (index[j.a] >= 0 && index[j.b] >= 0) {
+          j.a = static_cast<std::size_t>(index[j.a]);
+          j.b = static_cast<std::size_t>(index[j.b]);
+          joints.push_back(j);
+        }
+      out.joints = std::move(joints);
+      out.blocks = std::move(kept);
+      out.warnings.push_back("/blocks: " + std::to_string(dropped) +
+                             " blocks start inside or touching the pier and were left out; move the structure "
+                             "(structure.position) or narrow keep_x / keep_y");
+    }
+  }
   if (out.blocks.empty())
-    throw InputError("/blocks/keep_x", "no ridge block lies inside keep_x / keep_y; widen them or check offset");
+    throw InputError("/blocks/keep_x", "no block left: none inside keep_x / keep_y, or all inside the structure");
   return out;
 }
 

@@ -258,6 +258,11 @@ void write_analysis(const std::string& path, const AnalysisOut& a) {
     h5_attr(h.id, "particles_created", static_cast<double>(r.particles_created));
     h5_attr(h.id, "bonds_created", static_cast<double>(r.bonds_created));
     h5_attr(h.id, "sites_dropped", static_cast<double>(r.sites_dropped));
+    h5_attr(h.id, "conversions_freeze", static_cast<double>(r.conversions_freeze));
+    h5_attr(h.id, "conversions_flexure", static_cast<double>(r.conversions_flexure));
+    h5_attr(h.id, "conversions_refused", static_cast<double>(r.conversions_refused));
+    h5_attr(h.id, "max_utilisation", r.max_utilisation);
+    h5_attr(h.id, "blocks_moved_clear", static_cast<double>(r.blocks_moved_clear));
     h5_attr(h.id, "peak_particles", static_cast<double>(r.peak_particles));
     h5_attr(h.id, "blocks_initial", static_cast<double>(r.blocks_initial));
     h5_attr(h.id, "blocks_final", static_cast<double>(r.blocks_now));
@@ -558,6 +563,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
                  "steps (stability limit %.4g s)\n",
                  r.blocks_initial, hsetup.joints.size(), bridge::to_string(hsetup.def.mode), r.rigid_dt,
                  static_cast<unsigned long long>(r.steps_per_rigid_step), r.rigid_dt_limit);
+    if (r.blocks_moved_clear)
+      std::fprintf(progress, "hybridsim: %zu blocks started overlapping the particles and were moved clear (at most %.3g m)\n",
+                   r.blocks_moved_clear, r.max_clearing_shift);
     if (hsetup.ice_joints_skipped)
       std::fprintf(progress,
                    "warning: %zu ridge freeze joints to the ice sheet are not modelled yet (block-particle freeze "
@@ -720,6 +728,10 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
         << " particles (" << r.bonds_created << " bonds, " << r.sites_dropped << " overlapping sites dropped); peak "
         << r.peak_particles << " particles; " << r.rigid_steps << " rigid steps of " << sci(r.rigid_dt, 4)
         << " s; " << hyb.world()->broken_joint_count() << " freeze joints broken\n";
+    out << "  conversions governed by: freeze bonds " << r.conversions_freeze << ", flexure " << r.conversions_flexure
+        << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
+        << "largest utilisation seen " << sci(r.max_utilisation, 3) << "; conversion KE change "
+        << sci(r.kinetic_energy_change, 3) << " J\n";
     out << "  time: bonded " << sci(r.seconds_bonded, 4) << " s, rigid " << sci(r.seconds_rigid, 4)
         << " s, bridge " << sci(r.seconds_bridge, 4) << " s\n";
   }

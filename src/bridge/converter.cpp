@@ -43,7 +43,8 @@ Mat3 box_inertia_world(const Vec3& he, const Quat& orientation, double mass) {
   return R * d.asDiagonal() * R.transpose();
 }
 
-ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& mat) {
+ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& mat,
+                               const SiteBlocked& blocked) {
   using namespace hs::bonded;
   // ---- input checks ----
   if (engine.parallel())
@@ -142,6 +143,9 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
       if (hit) { keep[i] = 0; ++dropped; }
     }
   }
+  if (blocked)
+    for (std::size_t i = 0; i < x.size(); ++i)
+      if (keep[i] && blocked(x[i], 0.5 * D)) { keep[i] = 0; ++dropped; }
   std::vector<Vec3> kept;
   kept.reserve(x.size() - dropped);
   for (std::size_t i = 0; i < x.size(); ++i)

@@ -27,6 +27,7 @@
 #include "bonded/hcp_lattice.h"
 
 #include <cstddef>
+#include <functional>
 
 namespace hs::bridge {
 
@@ -72,6 +73,10 @@ Mat3 box_inertia_world(const Vec3& half_extents, const Quat& orientation, double
 /// Converts `block` into bonded particles appended to `engine` (serial, before distribute()).
 /// Throws hs::InputError (path "block" or "material") on bad input and std::logic_error when the
 /// engine is distributed over MPI or holds ghosts.
-ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& material);
+/// Optional extra obstacle test for lattice sites: true drops the site (e.g. it would start inside
+/// another rigid block). Called with the site centre and the particle radius D/2.
+using SiteBlocked = std::function<bool(const Vec3& site, double radius)>;
+ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& material,
+                               const SiteBlocked& blocked = {});
 
 }  // namespace hs::bridge

@@ -32,6 +32,41 @@ const char* to_string(ConversionMode m) {
   return "?";
 }
 
+double block_particle_overlap(const bonded::ParticleStore& ps, const Vec3& half, const Vec3& c, const Quat& q) {
+  const Mat3 R = q.toRotationMatrix();
+  const double reach = half.norm();
+  double worst = 0.0;
+  for (std::size_t i = 0; i < ps.owned(); ++i) {
+    const Vec3 d = ps.x[i] - c;
+    const double r = ps.radius[i];
+    if (d.squaredNorm() > (reach + r) * (reach + r)) continue;
+    const Vec3 l = R.transpose() * d;
+    const Vec3 out = (l.cwiseAbs() - half).cwiseMax(0.0);
+    double depth;
+    if (out.isZero(0.0))  // centre inside: out through the nearest face
+      depth = r + (half - l.cwiseAbs()).minCoeff();
+    else
+      depth = r - out.norm();
+    worst = std::max(worst, depth);
+  }
+  return worst;
+}
+
+double clearing_shift(const bonded::Engine& engine, const Vec3& half, const Vec3& c, const Quat& q) {
+  // A block that starts overlapping particles would be thrown off by the contact springs
+  // (energy from nowhere). It is moved vertically away from the water line (down below
+  // it, up above it) until clear, 1 mm to spare; a few passes cover particles uncovered by
+  // the move.
+  const double dir = c.z() < engine.def().water.level ? -1.0 : 1.0;
+  double shift = 0.0;
+  for (int pass = 0; pass < 8; ++pass) {
+    const double o = block_particle_overlap(engine.particles(), half, c + Vec3(0, 0, shift), q);
+    if (o <= 0.0) break;
+    shift += dir * (o + 1e-3);
+  }
+  return shift;
+}
+
 double max_rigid_step(const RigidStepInputs& in) {
   if (!(in.min_mass_per_face_area > 0.0) || !(in.particle_diameter > 0.0) || !(in.contact_stiffness > 0.0) ||
       !(in.safety > 0.0))
@@ -52,6 +87,8 @@ struct HybridSystem::Impl {
   BlockContact contact;
   bool contact_registered = false;
   std::vector<rigid::BlockId> ids;
+  std::vector<char> unconvertible;  ///< per world slot: the converter refused this block once
+  std::vector<double> u_filtered;   ///< per world slot: low-pass filtered utilisation
   struct Ref {
     Vec3 x, v, w;
     Quat q;
@@ -134,7 +171,18 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   if (def.has_structure) m.mesh = world_->add_kinematic_mesh(def.structure);
   std::vector<rigid::BlockId> ids;
   ids.reserve(blocks.size());
-  for (const auto& b : blocks) ids.push_back(world_->add_block(b.def));
+  for (const auto& b : blocks) {
+    rigid::BlockDef bd = b.def;
+    if (!bd.fixed) {
+      const double shift = clearing_shift(engine, bd.half_extents, bd.position, bd.orientation);
+      if (shift != 0.0) {
+        bd.position.z() += shift;
+        ++report_.blocks_moved_clear;
+        report_.max_clearing_shift = std::max(report_.max_clearing_shift, std::abs(shift));
+      }
+    }
+    ids.push_back(world_->add_block(bd));
+  }
   for (const auto& j : joints)
     world_->add_freeze_joint(rigid::FreezeJointDef{ids.at(j.a), ids.at(j.b), j.anchor, j.normal, j.area});
   report_.blocks_now = world_->block_count();
@@ -223,6 +271,7 @@ void HybridSystem::apply_policy() {
   std::vector<PointLoad> loads;
   for (const rigid::BlockId id : world_->blocks()) {
     if (world_->fixed(id)) continue;  // fixed blocks are walls and floors, not ice
+    if (id.index < m.unconvertible.size() && m.unconvertible[id.index]) continue;
     const Vec3 x = world_->position(id), half = world_->half_extents(id);
     if (!m.def.region.contains_block(sp, x, half)) continue;
     joints.clear();
@@ -237,14 +286,26 @@ void HybridSystem::apply_policy() {
     const FlexureEstimate fl =
         flexure_estimate(BlockBox{half, x, world_->orientation(id)}, loads, m.def.flexural_strength);
     const BlockStress st = block_stress(fe, fl);
-    report_.max_utilisation = std::max(report_.max_utilisation, st.utilisation());
-    if (converts(st, m.def.safety_factor)) {
+    if (m.u_filtered.size() <= id.index) m.u_filtered.resize(id.index + 1, 0.0);
+    double& u = m.u_filtered[id.index];
+    const double tau = m.def.stress_time_constant;
+    u = tau > 0.0 ? u + (st.utilisation() - u) * std::min(1.0, report_.rigid_dt / tau) : st.utilisation();
+    report_.max_utilisation = std::max(report_.max_utilisation, u);
+    if (converts(u, m.def.safety_factor)) {
       to_convert.push_back(id);
       by_freeze.push_back(st.governing == StressMode::FreezeBond);
     }
   }
   for (std::size_t k = 0; k < to_convert.size(); ++k) {
-    convert(to_convert[k]);
+    try {
+      convert(to_convert[k]);
+    } catch (const InputError&) {
+      // Same decision on every rank (same replicated state), so no rank diverges.
+      if (m.unconvertible.size() <= to_convert[k].index) m.unconvertible.resize(to_convert[k].index + 1, 0);
+      m.unconvertible[to_convert[k].index] = 1;
+      ++report_.conversions_refused;
+      continue;
+    }
     ++(by_freeze[k] ? report_.conversions_freeze : report_.conversions_flexure);
   }
 }
@@ -258,7 +319,24 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
   b.velocity = world_->velocity(id);
   b.angular_velocity = world_->angular_velocity(id);
   b.mass = world_->mass(id);
-  const ConversionReport r = convert_block(engine_, b, m.def.ice);
+  // Sites that would start inside (or touching) another rigid block are dropped too: the
+  // block-block contact was Bullet's, with its own small penetrations, and a particle there
+  // would be thrown out by the particle-block contact spring.
+  std::vector<rigid::BlockId> near;
+  const double reach = b.half_extents.norm() + m.def.ice.diameter;
+  for (const rigid::BlockId o : m.ids)
+    if (!(o == id) && (world_->position(o) - b.pose.position).norm() < reach + world_->half_extents(o).norm())
+      near.push_back(o);
+  const SiteBlocked inside_other = [&](const Vec3& site, double r) {
+    for (const rigid::BlockId o : near) {
+      const Mat3 R = world_->orientation(o).toRotationMatrix();
+      const Vec3 l = R.transpose() * (site - world_->position(o));
+      const Vec3 out = (l.cwiseAbs() - world_->half_extents(o)).cwiseMax(0.0);
+      if (out.norm() < r) return true;  // inside, or closer than r to its surface
+    }
+    return false;
+  };
+  const ConversionReport r = convert_block(engine_, b, m.def.ice, inside_other);
   report_.joints_released += world_->joints_of(id).size();
   const auto it = std::find(m.ids.begin(), m.ids.end(), id);
   const std::size_t k = static_cast<std::size_t>(it - m.ids.begin());

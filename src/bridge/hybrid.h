@@ -52,6 +52,14 @@ struct RigidStepInputs {
 };
 double max_rigid_step(const RigidStepInputs& in);
 
+/// Deepest overlap (m) of an oriented box with the owned particles (0 when clear).
+double block_particle_overlap(const bonded::ParticleStore& ps, const Vec3& half_extents, const Vec3& centre,
+                              const Quat& orientation);
+/// Vertical shift (m) that clears a block from the engine's particles: downwards for a block
+/// centred below the water level, upwards otherwise, until no overlap remains (+1 mm); 0 if clear.
+double clearing_shift(const bonded::Engine& engine, const Vec3& half_extents, const Vec3& centre,
+                      const Quat& orientation);
+
 /// Outcome counters of a hybrid run (printed at the end and stored in the run file).
 struct HybridReport {
   std::uint64_t conversions = 0;          ///< blocks turned into particles
@@ -64,6 +72,10 @@ struct HybridReport {
   std::uint64_t conversions_flexure = 0;  ///< ... by the flexural estimate
   std::uint64_t joints_released = 0;      ///< freeze joints removed with converted blocks
   double max_utilisation = 0.0;           ///< largest max(u_freeze, u_flex) seen in the region
+  std::uint64_t conversions_refused = 0;   ///< blocks the converter could not fill (thinner than
+                                          ///< D, or every site overlapping particles): stay rigid
+  std::size_t blocks_moved_clear = 0;     ///< blocks shifted at the start to clear the particles
+  double max_clearing_shift = 0.0;        ///< m, the largest of those shifts
   std::size_t blocks_initial = 0, blocks_now = 0;
   double rigid_dt = 0.0;                  ///< s
   std::uint64_t steps_per_rigid_step = 0; ///< k
@@ -88,6 +100,10 @@ struct HybridDef {
   ConversionRegion region;
   double safety_factor = 1.0;
   double flexural_strength = 0.5e6;       ///< Pa
+  /// Time constant of the low-pass filter on each block's utilisation, s (0 = none). Bullet
+  /// resolves a collision in one step with an impulse whose force (impulse / step) is far above
+  /// the sustained load; the filter lets a load count only when it lasts (docs/bridge.md).
+  double stress_time_constant = 0.05;
 };
 
 /// One block to start with.

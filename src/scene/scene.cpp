@@ -48,7 +48,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/blocks",
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "rigid_dt", "conversion", "region", "safety_factor",
-        "flexural_strength"}},
+        "flexural_strength", "stress_time_constant"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
   };
@@ -676,6 +676,8 @@ Scene parse_scene(const json& j, const std::string& base_dir) {
                                "a block converts when its stress utilisation x safety_factor >= 1; > 1 converts earlier");
     b.flexural_strength = o.number("flexural_strength", s.analysis.flexural_strength, Range::positive(), "Pa",
                                    "flexural strength of a block, e.g. 0.5e6");
+    b.stress_time_constant = o.number("stress_time_constant", b.stress_time_constant, Range::non_negative(), "s",
+                                      "time constant of the filter on each block's stress utilisation, e.g. 0.05");
     if (o.has("region")) {
       const Obj r(o.raw("region"), "/blocks/region");
       auto& g = b.region;

@@ -160,6 +160,7 @@ struct BlocksDef {
   ConversionRegionDef region;
   double safety_factor = 1.0;        ///< converts when utilisation x safety_factor >= 1
   double flexural_strength = 0.0;    ///< Pa; 0 = analysis.flexural_strength
+  double stress_time_constant = 0.05;  ///< s, low-pass filter on the utilisation; 0 = none
 };
 
 struct Scene {

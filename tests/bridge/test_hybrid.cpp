@@ -174,7 +174,7 @@ struct PullResult {
   bool converted = false;
   bool joint_broke = false;
 };
-PullResult pull_until_conversion(double safety_factor, bool in_region) {
+PullResult pull_until_conversion(double safety_factor, bool in_region, double time_constant = 0.0) {
   Engine e(engine_def(false));
   add_spectator(e);
   e.set_dt(1e-4);
@@ -182,6 +182,7 @@ PullResult pull_until_conversion(double safety_factor, bool in_region) {
   d.world.gravity = Vec3::Zero();      // the joint carries only the pull
   d.world.freeze_bond_strength = 2e4;  // Pa
   d.safety_factor = safety_factor;
+  d.stress_time_constant = time_constant;
   d.region.shape = bridge::ConversionRegion::Shape::Box;
   d.region.half_extents = Vec3(5, 5, 5);
   d.region.offset = in_region ? Vec3::Zero() : Vec3(100, 0, 0);
@@ -221,6 +222,13 @@ TEST(HybridPolicy, FreezeBondEstimateConvertsAtStrengthOverSafetyFactor) {
   EXPECT_NEAR(r.force / 2000.0, 1.0, 0.05);
   std::printf("[ hybrid ] freeze-bond conversion at %.1f N (strength x area / SF = 2000 N), ratio %.4f\n", r.force,
               r.force / 2000.0);
+  // With the utilisation filtered (time constant tau), a ramp F = rate t converts tau later:
+  // at 2000 N + rate tau (rate 2000 N/s, tau 0.05 s: 2100 N).
+  const PullResult f = pull_until_conversion(2.0, true, 0.05);
+  EXPECT_TRUE(f.converted);
+  EXPECT_NEAR(f.force / 2100.0, 1.0, 0.02);
+  std::printf("[ hybrid ] with a 0.05 s filter: conversion at %.1f N (2100 N expected), ratio %.4f\n", f.force,
+              f.force / 2100.0);
   // Outside the region the same load never converts: the joint breaks at its strength instead.
   const PullResult o = pull_until_conversion(2.0, false);
   EXPECT_FALSE(o.converted);
