@@ -161,6 +161,21 @@ int Engine::add_mesh_wall(MeshWallDef def) {
   return static_cast<int>(meshes_.size()) - 1;
 }
 
+void Engine::add_force_source(ForceSource* source) {
+  if (source == nullptr) throw std::invalid_argument("add_force_source: null source");
+  if (std::find(sources_.begin(), sources_.end(), source) != sources_.end())
+    throw std::invalid_argument("add_force_source: source already registered");
+  sources_.push_back(source);
+  forces_valid_ = false;
+}
+
+void Engine::remove_force_source(ForceSource* source) {
+  const auto it = std::find(sources_.begin(), sources_.end(), source);
+  if (it == sources_.end()) return;
+  sources_.erase(it);
+  forces_valid_ = false;
+}
+
 // ---------------------------------------------------------------- time step
 
 double Engine::eq2_time_step() const {
@@ -533,6 +548,18 @@ void Engine::mesh_forces() {
   }
 }
 
+void Engine::source_forces() {
+  const ForceSourceContext ctx{def_, history_dt_, time_};
+  for (std::size_t k = 0; k < sources_.size(); ++k) {
+    const ForceSourceResult r = sources_[k]->add_forces(ps_, ps_.owned(), ctx);
+    if (r.worst_overlap_ratio > worst_overlap_ratio_) {
+      worst_overlap_ratio_ = r.worst_overlap_ratio;
+      worst_overlap_i_ = r.worst_particle;
+      worst_overlap_source_ = static_cast<int>(k);
+    }
+  }
+}
+
 template <class Law>
 void Engine::pair_forces(const Law& law) {
   Vec3* __restrict f = ps_.f.data();
@@ -581,6 +608,7 @@ void Engine::pair_forces(const Law& law) {
     worst_overlap_ratio_ = worst;
     worst_overlap_i_ = wi;
     worst_overlap_j_ = wj;
+    worst_overlap_source_ = -1;
   }
 }
 
@@ -642,9 +670,11 @@ void Engine::evaluate_forces(double history_dt, bool finish) {
   history_dt_ = history_dt;
   broken_now_[0] = broken_now_[1] = 0;
   worst_overlap_ratio_ = 0.0;
+  worst_overlap_source_ = -1;
   field_forces();
   wall_forces();
   if (!meshes_.empty()) mesh_forces();
+  if (!sources_.empty()) source_forces();
   if (def_.contact_model == ContactModel::LinearSpringDashpot)
     pair_forces(LinearLaw{def_.contact});
   else
@@ -705,7 +735,10 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
     s << "contact overlap reached " << worst_overlap_ratio_
       << " of the particle radius (limit stability.max_overlap_ratio = " << def_.limits.max_overlap_ratio
       << ")";
-    if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size())
+    if (worst_overlap_source_ >= 0 && worst_overlap_i_ < ps_.size())
+      s << " between particle " << ps_.gid[worst_overlap_i_] << " and "
+        << sources_[static_cast<std::size_t>(worst_overlap_source_)]->name();
+    else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size())
       s << " between particles " << ps_.gid[worst_overlap_i_] << " and " << ps_.gid[worst_overlap_j_];
     else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ == ParticleStore::kNone)
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and a mesh structure";

@@ -5,7 +5,7 @@
 //   1. half kick     v += dt/2 F/m,  w += dt/2 T/I        (forces of the last step)
 //   2. drift         x += dt v,  q = exp(w dt) q          (track the Verlet-skin motion)
 //   3. neighbours    rebuild the contact-pair list if a particle moved > skin/2
-//   4. forces        fields (gravity, water) -> walls -> contact pairs -> bonds
+//   4. forces        fields (gravity, water) -> walls -> meshes -> force sources -> contact pairs -> bonds
 //   5. half kick     with the new forces; blow-up check
 // Loops run over the owned range [0, n_owned); pair and bond loops may touch ghosts.
 //
@@ -59,6 +59,32 @@ struct EngineDef {
   double skin = 0.0;                 ///< Verlet skin, m; 0 = 0.1 * smallest diameter
   bool spatial_sort = true;          ///< reorder particles by cell at neighbour rebuilds
   StabilityLimits limits;
+};
+
+/// What a force source sees of the force evaluation it takes part in.
+struct ForceSourceContext {
+  const EngineDef& def;   ///< the engine's definition (contact law and its parameters)
+  double history_dt;      ///< s; tangential springs advance by v_t * history_dt (0 in compute_forces())
+  double time;            ///< s; engine time of the state being evaluated
+};
+
+/// Overlap figure of a force source, for the engine's blow-up check.
+struct ForceSourceResult {
+  double worst_overlap_ratio = 0.0;  ///< largest overlap / particle radius among its contacts
+  std::uint32_t worst_particle = 0;  ///< local index of that particle
+};
+
+/// Forces on particles from outside the particle world (e.g. rigid blocks, src/bridge), added
+/// in every force evaluation after walls and meshes, so they take part in the Verlet step and
+/// in the blow-up check. A source touches owned particles [0, n_owned) only (adding to ps.f and
+/// ps.torque); under MPI each rank calls its own sources on its own particles, and any reaction
+/// it tallies is that rank's share. It must not move tangential history when history_dt == 0.
+class ForceSource {
+ public:
+  virtual ~ForceSource() = default;
+  virtual ForceSourceResult add_forces(ParticleStore& ps, std::size_t n_owned, const ForceSourceContext& ctx) = 0;
+  /// For diagnostics ("contact overlap ... between particle 12 and <name>").
+  virtual const char* name() const { return "an external force source"; }
 };
 
 /// How the engine spreads over MPI ranks (docs/parallel.md).
@@ -158,6 +184,10 @@ class Engine {
   int add_wall(const PlaneWall& w);
   /// Adds a moving triangle-mesh wall; throws hs::InputError if the mesh is invalid.
   int add_mesh_wall(MeshWallDef def);
+  /// Registers a force source (not owned; it must outlive its registration). Sources are called
+  /// in the order added. Without any, force evaluation is unchanged.
+  void add_force_source(ForceSource* source);
+  void remove_force_source(ForceSource* source);
 
   // ---- time step ----
   /// dt from paper Eq. 2: alpha D sqrt(rho/E) with the smallest particle diameter.
@@ -262,6 +292,7 @@ class Engine {
   ContactResult wall_contact(double delta, double r, const Vec3& n, double vn, const Vec3& vt, double m,
                              double friction, Vec3& xi) const;
   void mesh_forces();
+  void source_forces();
   template <class Law>
   void pair_forces(const Law& law);
   void bond_forces();
@@ -293,6 +324,7 @@ class Engine {
     std::unordered_map<Key, Vec3, KeyHash> history, next_history;  ///< tangential springs
   };
   std::vector<MeshWall> meshes_;
+  std::vector<ForceSource*> sources_;
   std::vector<mesh::MeshContact> mesh_contacts_;
   mesh::MeshQueryScratch mesh_scratch_;
   std::vector<Vec3> x_at_build_;
@@ -309,6 +341,7 @@ class Engine {
   // overlap check of the last force pass
   double worst_overlap_ratio_ = 0.0;
   std::uint32_t worst_overlap_i_ = 0, worst_overlap_j_ = 0;
+  int worst_overlap_source_ = -1;  ///< index into sources_ when a source holds the worst overlap
   // parallel state (engine_parallel.cpp)
   const par::Comm* comm_ = &par::serial();
   ParallelDef pdef_;
