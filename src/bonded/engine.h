@@ -85,6 +85,9 @@ class ForceSource {
   virtual ForceSourceResult add_forces(ParticleStore& ps, std::size_t n_owned, const ForceSourceContext& ctx) = 0;
   /// For diagnostics ("contact overlap ... between particle 12 and <name>").
   virtual const char* name() const { return "an external force source"; }
+  /// True when its forces depend on particle orientations (e.g. bonds to a block): the engine
+  /// then integrates orientations even without particle-particle bonds.
+  virtual bool uses_orientation() const { return false; }
 };
 
 /// How the engine spreads over MPI ranks (docs/parallel.md).
