@@ -109,7 +109,8 @@ class BlockParticleBonds final : public bonded::ForceSource {
   bool uses_orientation() const override { return n_intact_ > 0; }
 
   /// Linear (N s) and angular (N m s, about each block's centre) impulses on every block slot
-  /// since the last call (this rank's share); clears them.
+  /// since the last call (this rank's share), written over `linear` and `angular` (resized to
+  /// block_count()); clears them.
   void take_impulses(std::vector<Vec3>& linear, std::vector<Vec3>& angular);
   /// Collective: a bond broken on any rank is removed on every rank. Returns the number removed.
   std::size_t sync_broken(const par::Comm& comm);
