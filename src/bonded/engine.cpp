@@ -766,7 +766,8 @@ void Engine::step() {
   // Orientations matter only to bonds. Under MPI a rank may own bonded particles whose bonds
   // live on a neighbour (the owner of the lower id), so there orientations advance whenever any
   // rank has a bond (max_bond_length_ is the global figure of the last exchange).
-  const bool rotate = !bonds_.empty() || (parallel() && max_bond_length_ > 0.0);
+  bool rotate = !bonds_.empty() || (parallel() && max_bond_length_ > 0.0);
+  for (const ForceSource* src : sources_) rotate = rotate || src->uses_orientation();
   Vec3* x = ps_.x.data();
   Vec3* v = ps_.v.data();
   Vec3* w = ps_.omega.data();

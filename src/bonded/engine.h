@@ -93,6 +93,9 @@ class ForceSource {
   /// per-particle state keeps the defaults (nothing travels).
   virtual void pack_history(const std::unordered_map<GlobalId, int>& /*leaving*/, std::vector<par::Bytes>& /*out*/) {}
   virtual void unpack_history(const char* /*data*/, std::size_t /*size*/) {}
+  /// True when its forces depend on particle orientations (e.g. bonds to a block): the engine
+  /// then integrates orientations even without particle-particle bonds.
+  virtual bool uses_orientation() const { return false; }
 };
 
 /// How the engine spreads over MPI ranks (docs/parallel.md).

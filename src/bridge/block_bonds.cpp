@@ -1,0 +1,285 @@
+#include "bridge/block_bonds.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+#include <unordered_set>
+
+namespace hs::bridge {
+
+using bonded::BondKind;
+using bonded::BondKinematics;
+using bonded::BondRef;
+using bonded::BondResult;
+using bonded::ParallelBondParams;
+using bonded::ParticleStore;
+
+namespace {
+
+// Whether x lies on or in the block's box grown by `grow` along each of its axes.
+bool on_box(const BlockBody& b, const Vec3& x, double grow) {
+  const Vec3 l = b.orientation.conjugate() * (x - b.position);
+  return (l.cwiseAbs() - b.half_extents).maxCoeff() <= grow;
+}
+
+}  // namespace
+
+void BlockParticleBonds::set_block(std::uint32_t block, const BlockBody& body) {
+  if (block >= blocks_.size()) {
+    blocks_.resize(static_cast<std::size_t>(block) + 1);
+    impulse_.resize(blocks_.size(), Vec3::Zero());
+    angular_impulse_.resize(blocks_.size(), Vec3::Zero());
+  }
+  blocks_[block] = body;
+}
+
+void BlockParticleBonds::add_bond_at(const ParticleStore& ps, std::size_t index, std::uint32_t block,
+                                     const Vec3& surface_point, const Vec3& normal) {
+  if (block >= blocks_.size()) throw std::invalid_argument("BlockParticleBonds: unknown block slot");
+  if (index >= ps.size()) throw std::invalid_argument("BlockParticleBonds: unknown particle");
+  const BlockBody& B = blocks_[block];
+  const double r = ps.radius[index];
+  BlockParticleBond b;
+  b.gid = ps.gid[index];
+  b.block = block;
+  b.anchor = B.orientation.conjugate() * (surface_point - r * normal - B.position);
+  // The virtual particle's centre exactly as add_forces() will compute it, so the bond starts
+  // stress free up to rounding.
+  const Vec3 xv = B.position + B.orientation * b.anchor;
+  if (!((xv - ps.x[index]).norm() > 0.25 * r))
+    throw std::invalid_argument("BlockParticleBonds: particle centre inside the block");
+  b.ref = BondRef::at_rest(ps.x[index], ps.q[index], r, xv, B.orientation, r);
+  bonds_.push_back(b);
+  cached_index_.push_back(static_cast<std::uint32_t>(index));
+  ++n_intact_;
+}
+
+void BlockParticleBonds::add_bond(const ParticleStore& ps, GlobalId gid, std::uint32_t block) {
+  if (block >= blocks_.size()) throw std::invalid_argument("BlockParticleBonds: unknown block slot");
+  const std::uint32_t i = ps.local(gid);
+  if (i == ParticleStore::kNone) throw std::invalid_argument("BlockParticleBonds: unknown particle id");
+  const BlockBody& B = blocks_[block];
+  const Vec3 l = B.orientation.conjugate() * (ps.x[i] - B.position);
+  const Vec3 closest = l.cwiseMax(-B.half_extents).cwiseMin(B.half_extents);
+  const Vec3 d = l - closest;
+  const double dist = d.norm();
+  if (!(dist > 0.0)) throw std::invalid_argument("BlockParticleBonds: particle centre inside the block");
+  add_bond_at(ps, i, block, B.position + B.orientation * closest, B.orientation * (d / dist));
+}
+
+std::size_t BlockParticleBonds::bond_patch(const ParticleStore& ps, std::uint32_t block, const Vec3& anchor,
+                                           const Vec3& normal, double area, double rel_tol, std::size_t first,
+                                           std::size_t last) {
+  if (block >= blocks_.size()) throw std::invalid_argument("bond_patch: unknown block slot");
+  if (!(area > 0.0) || !(normal.norm() > 0.0)) throw std::invalid_argument("bond_patch: area and normal must be > 0");
+  const Vec3 n = normal.normalized();
+  const double R2 = area / kPi;
+  const BlockBody& B = blocks_[block];
+  std::size_t made = 0;
+  last = std::min(last, ps.owned());
+  for (std::size_t i = first; i < last; ++i) {
+    const double r = ps.radius[i];
+    const Vec3 rel = ps.x[i] - anchor;
+    const double s = rel.dot(n);
+    if (!(s > 0.0) || s > r * (1.0 + rel_tol)) continue;
+    if ((rel - s * n).squaredNorm() > R2) continue;
+    const Vec3 foot = ps.x[i] - s * n;
+    if (!on_box(B, foot, r * rel_tol)) continue;
+    add_bond_at(ps, i, block, foot, n);
+    ++made;
+  }
+  return made;
+}
+
+std::size_t BlockParticleBonds::bond_touching(const ParticleStore& ps, std::uint32_t block, double rel_tol) {
+  if (block >= blocks_.size()) throw std::invalid_argument("bond_touching: unknown block slot");
+  const BlockBody& B = blocks_[block];
+  std::size_t made = 0;
+  for (std::size_t i = 0; i < ps.owned(); ++i) {
+    const Vec3 l = B.orientation.conjugate() * (ps.x[i] - B.position);
+    const Vec3 d = l - l.cwiseMax(-B.half_extents).cwiseMin(B.half_extents);
+    const double dist = d.norm();
+    if (!(dist > 0.0) || dist > ps.radius[i] * (1.0 + rel_tol)) continue;
+    add_bond(ps, ps.gid[i], block);
+    ++made;
+  }
+  return made;
+}
+
+std::vector<ReleasedBond> BlockParticleBonds::release_block(std::uint32_t block) {
+  std::vector<ReleasedBond> out;
+  std::size_t w = 0;
+  for (std::size_t k = 0; k < bonds_.size(); ++k) {
+    const BlockParticleBond& b = bonds_[k];
+    if (b.block != block) {
+      cached_index_[w] = cached_index_[k];
+      bonds_[w++] = b;
+      continue;
+    }
+    if (b.broken) continue;
+    const BlockBody& B = blocks_[block];
+    out.push_back({b.gid, B.position + B.orientation * b.anchor});
+    --n_intact_;
+  }
+  bonds_.resize(w);
+  cached_index_.resize(w);
+  return out;
+}
+
+std::uint32_t BlockParticleBonds::lookup(const ParticleStore& ps, std::size_t n_owned, std::size_t k) {
+  // The store is reordered at neighbour rebuilds and loses/gains particles under MPI: trust the
+  // cached index only while it still holds the same particle.
+  std::uint32_t& c = cached_index_[k];
+  const GlobalId gid = bonds_[k].gid;
+  if (c < n_owned && ps.gid[c] == gid) return c;
+  c = ps.local(gid);
+  if (c == ParticleStore::kNone || c >= n_owned) c = ParticleStore::kNone;
+  return c;
+}
+
+bonded::ForceSourceResult BlockParticleBonds::add_forces(ParticleStore& ps, std::size_t n_owned,
+                                                         const bonded::ForceSourceContext& ctx) {
+  if (n_intact_ == 0) return {};
+  const ParallelBondParams& p = ctx.def.bond[static_cast<int>(BondKind::Freeze)];
+  const double h = ctx.history_dt;
+  for (std::size_t k = 0; k < bonds_.size(); ++k) {
+    BlockParticleBond& b = bonds_[k];
+    if (b.broken) continue;
+    const std::uint32_t i = lookup(ps, n_owned, k);
+    if (i == ParticleStore::kNone) continue;  // not ours (MPI) or gone
+    const BlockBody& B = blocks_[b.block];
+    const Vec3 xv = B.position + B.orientation * b.anchor;
+    const Vec3 vv = B.velocity + B.angular_velocity.cross(xv - B.position);
+    const BondKinematics kin{ps.x[i], xv, ps.q[i], B.orientation, ps.v[i], vv, ps.omega[i], B.angular_velocity};
+    const BondResult r = bonded::parallel_bond(p, b.ref, kin);
+    const bool tension = r.sigma > p.sigma_c;
+    const bool shear = r.tau > p.tau_c;
+    if (tension || shear) {
+      b.broken = true;
+      --n_intact_;
+      ++stats_.broken;
+      ++(tension ? stats_.broken_tension : stats_.broken_shear);
+      continue;
+    }
+    ps.f[i] -= r.fj;
+    ps.torque[i] += r.ti;
+    if (h > 0.0) {
+      impulse_[b.block] += h * r.fj;
+      angular_impulse_[b.block] += h * ((xv - B.position).cross(r.fj) + r.tj);
+    }
+  }
+  return {};  // a bond has no contact overlap
+}
+
+void BlockParticleBonds::take_impulses(std::vector<Vec3>& linear, std::vector<Vec3>& angular) {
+  linear = impulse_;
+  angular = angular_impulse_;
+  std::fill(impulse_.begin(), impulse_.end(), Vec3::Zero());
+  std::fill(angular_impulse_.begin(), angular_impulse_.end(), Vec3::Zero());
+}
+
+std::size_t BlockParticleBonds::sync_broken(const par::Comm& comm) {
+  if (comm.parallel() && !bonds_.empty()) {
+    std::vector<double> flag(bonds_.size());
+    for (std::size_t k = 0; k < bonds_.size(); ++k) flag[k] = bonds_[k].broken ? 1.0 : 0.0;
+    comm.max(flag.data(), static_cast<int>(flag.size()));
+    for (std::size_t k = 0; k < bonds_.size(); ++k)
+      if (flag[k] > 0.0 && !bonds_[k].broken) {
+        bonds_[k].broken = true;
+        --n_intact_;
+      }
+  }
+  std::size_t w = 0;
+  for (std::size_t k = 0; k < bonds_.size(); ++k) {
+    if (bonds_[k].broken) continue;
+    cached_index_[w] = cached_index_[k];
+    bonds_[w++] = bonds_[k];
+  }
+  const std::size_t removed = bonds_.size() - w;
+  bonds_.resize(w);
+  cached_index_.resize(w);
+  return removed;
+}
+
+std::size_t BlockParticleBonds::count(std::uint32_t block) const {
+  std::size_t c = 0;
+  for (const auto& b : bonds_) c += (b.block == block && !b.broken);
+  return c;
+}
+
+double BlockParticleBonds::elastic_energy(const ParticleStore& ps, const bonded::EngineDef& def) const {
+  const ParallelBondParams& p = def.bond[static_cast<int>(BondKind::Freeze)];
+  double e = 0.0;
+  for (const auto& b : bonds_) {
+    if (b.broken) continue;
+    const std::uint32_t i = ps.local(b.gid);
+    if (i == ParticleStore::kNone || i >= ps.owned()) continue;
+    const BlockBody& B = blocks_[b.block];
+    const Vec3 xv = B.position + B.orientation * b.anchor;
+    const Vec3 vv = B.velocity + B.angular_velocity.cross(xv - B.position);
+    const BondKinematics kin{ps.x[i], xv, ps.q[i], B.orientation, ps.v[i], vv, ps.omega[i], B.angular_velocity};
+    e += bonded::parallel_bond(p, b.ref, kin).energy;
+  }
+  return e;
+}
+
+std::size_t hand_over_to_particles(bonded::Engine& engine, const std::vector<ReleasedBond>& released,
+                                   std::size_t first, std::size_t count) {
+  const ParticleStore& ps = engine.particles();
+  const std::size_t last = std::min(first + count, ps.owned());
+  if (first >= last) return 0;
+  std::unordered_set<bonded::GidPair, bonded::GidPairHash> made_pairs;
+  std::size_t made = 0;
+  for (const ReleasedBond& rb : released) {
+    std::size_t best = SIZE_MAX;
+    double best_d2 = std::numeric_limits<double>::infinity();
+    for (std::size_t j = first; j < last; ++j) {
+      const double d2 = (ps.x[j] - rb.anchor).squaredNorm();
+      if (d2 < best_d2 && ps.gid[j] != rb.gid && !made_pairs.count(bonded::GidPair::of(rb.gid, ps.gid[j]))) {
+        best_d2 = d2;
+        best = j;
+      }
+    }
+    if (best == SIZE_MAX) continue;
+    const GlobalId partner = ps.gid[best];
+    made_pairs.insert(bonded::GidPair::of(rb.gid, partner));
+    engine.add_bond(rb.gid, partner, BondKind::Freeze);
+    ++made;
+  }
+  return made;
+}
+
+std::size_t bond_joint_to_particles(BlockParticleBonds& bonds, const ParticleStore& ps, std::uint32_t block,
+                                    const Vec3& anchor, const Vec3& normal, double area, std::size_t first,
+                                    std::size_t count) {
+  if (!(area > 0.0) || !(normal.norm() > 0.0))
+    throw std::invalid_argument("bond_joint_to_particles: area and normal must be > 0");
+  const Vec3 n = normal.normalized();
+  const double R2 = area / kPi;
+  const BlockBody& B = bonds.block(block);
+  const std::size_t last = std::min(first + count, ps.owned());
+  // Candidates: new particles on the converted side whose foot lies in the patch and on the
+  // remaining block's box (grown by a radius); then the layer nearest the face.
+  std::vector<std::size_t> cand;
+  double s_min = std::numeric_limits<double>::infinity();
+  for (std::size_t i = first; i < last; ++i) {
+    const Vec3 rel = ps.x[i] - anchor;
+    const double s = rel.dot(n);
+    if (!(s > 0.0) || (rel - s * n).squaredNorm() > R2) continue;
+    if (!on_box(B, ps.x[i] - s * n, ps.radius[i])) continue;
+    cand.push_back(i);
+    s_min = std::min(s_min, s);
+  }
+  std::size_t made = 0;
+  for (std::size_t i : cand) {
+    const double s = (ps.x[i] - anchor).dot(n);
+    // Half the HCP layer spacing sqrt(2/3) D: only the first layer.
+    if (s > s_min + 0.5 * std::sqrt(2.0 / 3.0) * 2.0 * ps.radius[i]) continue;
+    bonds.add_bond_at(ps, i, block, ps.x[i] - s * n, n);
+    ++made;
+  }
+  return made;
+}
+
+}  // namespace hs::bridge
