@@ -84,7 +84,8 @@ HybridSetup hybrid_setup(const scene::Scene& s) {
     }
     for (const auto& j : r.joints) {
       if (j.b < 0) {
-        out.ice_joints_skipped += kept[j.a] >= 0;
+        if (kept[j.a] >= 0)
+          out.ice_joints.push_back({static_cast<std::size_t>(kept[j.a]), j.anchor + b.offset, j.normal, j.area});
         continue;
       }
       if (kept[j.a] < 0 || kept[j.b] < 0) continue;
@@ -128,6 +129,13 @@ HybridSetup hybrid_setup(const scene::Scene& s) {
           joints.push_back(j);
         }
       out.joints = std::move(joints);
+      std::vector<bridge::IceJointInit> ice;
+      for (auto j : out.ice_joints)
+        if (index[j.block] >= 0) {
+          j.block = static_cast<std::size_t>(index[j.block]);
+          ice.push_back(j);
+        }
+      out.ice_joints = std::move(ice);
       out.blocks = std::move(kept);
       out.warnings.push_back("/blocks: " + std::to_string(dropped) +
                              " blocks start inside or touching the pier and were left out; move the structure "

@@ -352,7 +352,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   bonded::Engine& e = *b.engine;
   const HybridSetup hsetup = hybrid_setup(s);
   for (const auto& w : hsetup.warnings) std::fprintf(progress, "warning: %s\n", w.c_str());
-  bridge::HybridSystem hyb(e, hsetup.def, hsetup.blocks, hsetup.joints);
+  bridge::HybridSystem hyb(e, hsetup.def, hsetup.blocks, hsetup.joints, hsetup.ice_joints);
   if (comm.parallel()) {  // every rank built the whole scene; each keeps its share
     bonded::ParallelDef pd;
     pd.grid = s.parallel.grid;
@@ -566,11 +566,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     if (r.blocks_moved_clear)
       std::fprintf(progress, "hybridsim: %zu blocks started overlapping the particles and were moved clear (at most %.3g m)\n",
                    r.blocks_moved_clear, r.max_clearing_shift);
-    if (hsetup.ice_joints_skipped)
-      std::fprintf(progress,
-                   "warning: %zu ridge freeze joints to the ice sheet are not modelled yet (block-particle freeze "
-                   "bonds); those blocks start loose under the ice\n",
-                   hsetup.ice_joints_skipped);
+    if (!hsetup.ice_joints.empty())
+      std::fprintf(progress, "hybridsim: %zu ridge joints to the ice sheet became %llu block-particle freeze bonds\n",
+                   hsetup.ice_joints.size(), static_cast<unsigned long long>(r.ice_bonds_created));
   }
   if (comm.parallel()) {
     const auto& g = e.decomposition().dims();
@@ -728,6 +726,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
         << " particles (" << r.bonds_created << " bonds, " << r.sites_dropped << " overlapping sites dropped); peak "
         << r.peak_particles << " particles; " << r.rigid_steps << " rigid steps of " << sci(r.rigid_dt, 4)
         << " s; " << hyb.world()->broken_joint_count() << " freeze joints broken\n";
+    out << "  block-particle freeze bonds: " << r.ice_bonds_created << " at the start, " << r.joints_to_bonds
+        << " made from joints of converted blocks, " << r.block_bonds_handed_over
+        << " handed over to particle bonds at conversions, " << hyb.block_particle_bonds_broken() << " broken\n";
     out << "  conversions governed by: freeze bonds " << r.conversions_freeze << ", flexure " << r.conversions_flexure
         << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
         << "largest utilisation seen " << sci(r.max_utilisation, 3) << "; conversion KE change "

@@ -1,5 +1,6 @@
 #include "bridge/hybrid.h"
 
+#include "bridge/block_bonds.h"
 #include "bridge/block_contact.h"
 
 #include "common/error.h"
@@ -85,7 +86,10 @@ struct HybridSystem::Impl {
   // Particle-block contact. Block k of `contact` is world block ids[k]; `ids` is always the
   // world's block list (slot order), which is also the coupler's order.
   BlockContact contact;
+  BlockParticleBonds bonds;  ///< block-particle freeze bonds, block number = world slot index
   bool contact_registered = false;
+  std::vector<Vec3> bond_lin, bond_ang;
+  std::uint64_t bonds_broken_synced = 0;
   std::vector<rigid::BlockId> ids;
   std::vector<char> unconvertible;  ///< per world slot: the converter refused this block once
   std::vector<double> u_filtered;   ///< per world slot: low-pass filtered utilisation
@@ -112,12 +116,13 @@ struct HybridSystem::Impl {
       const double angle = r.w.norm() * tau;
       if (angle > 0.0) q = (Quat(Eigen::AngleAxisd(angle, r.w.normalized())) * r.q).normalized();
       contact.set_state(k, r.x + tau * r.v, q, r.v, r.w);
+      bonds.set_block(ids[k].index, BlockBody{r.x + tau * r.v, q, r.v, r.w, contact.block(k).half_extents});
     }
   }
 };
 
 HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const std::vector<BlockInit>& blocks,
-                           const std::vector<JointInit>& joints)
+                           const std::vector<JointInit>& joints, const std::vector<IceJointInit>& ice_joints)
     : impl_(std::make_unique<Impl>()), engine_(engine) {
   Impl& m = *impl_;
   m.def = def;
@@ -202,7 +207,11 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
     m.contact.add_block(cb);
   }
   m.take_reference(*world_);
+  m.extrapolate(world_->time());
+  for (const auto& j : ice_joints)
+    report_.ice_bonds_created += m.bonds.bond_patch(engine.particles(), ids.at(j.block).index, j.anchor, j.normal, j.area);
   engine.add_force_source(&m.contact);
+  engine.add_force_source(&m.bonds);
   m.contact_registered = true;
   if (def.mode == ConversionMode::AllAtStart)
     for (const rigid::BlockId id : world_->blocks())
@@ -210,7 +219,10 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
 }
 
 HybridSystem::~HybridSystem() {
-  if (impl_ && impl_->contact_registered) engine_.remove_force_source(&impl_->contact);
+  if (impl_ && impl_->contact_registered) {
+    engine_.remove_force_source(&impl_->bonds);
+    engine_.remove_force_source(&impl_->contact);
+  }
 }
 
 void HybridSystem::step() {
@@ -236,6 +248,13 @@ void HybridSystem::step() {
       m.coupler.add_about_centre(k, L.impulse, L.angular_impulse);
   }
   m.contact.clear_impulses();
+  m.bonds.take_impulses(m.bond_lin, m.bond_ang);
+  for (std::size_t k = 0; k < m.ids.size(); ++k) {
+    const std::uint32_t slot = m.ids[k].index;
+    if (slot < m.bond_lin.size() && (!m.bond_lin[slot].isZero(0.0) || !m.bond_ang[slot].isZero(0.0)))
+      m.coupler.add_about_centre(k, m.bond_lin[slot], m.bond_ang[slot]);
+  }
+  m.bonds_broken_synced += m.bonds.sync_broken(engine_.comm());
   m.coupler.sum_and_apply(engine_.comm(), *world_);
   report_.seconds_bridge += seconds_since(t1);
   const auto t2 = Clock::now();
@@ -337,7 +356,22 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
     return false;
   };
   const ConversionReport r = convert_block(engine_, b, m.def.ice, inside_other);
-  report_.joints_released += world_->joints_of(id).size();
+  // Freeze bonds carry over: the block's bonds to particles become particle-particle freeze
+  // bonds to its new particles, and its joints to other blocks become block-particle bonds.
+  const std::vector<ReleasedBond> released = m.bonds.release_block(id.index);
+  report_.block_bonds_handed_over += hand_over_to_particles(engine_, released, r.first, r.particles_created);
+  const std::vector<rigid::JointId> joints = world_->joints_of(id);
+  for (const rigid::JointId j : joints) {
+    const rigid::FreezeJointDef jd = world_->joint_def(j);
+    const bool a_stays = !(jd.a == id);
+    const rigid::BlockId other = a_stays ? jd.a : jd.b;
+    if (world_->fixed(other)) continue;
+    // Normal from the remaining block towards the converted one.
+    report_.joints_to_bonds += bond_joint_to_particles(m.bonds, engine_.particles(), other.index, jd.anchor,
+                                                       a_stays ? jd.normal : Vec3(-jd.normal), jd.area, r.first,
+                                                       r.particles_created);
+  }
+  report_.joints_released += joints.size();
   const auto it = std::find(m.ids.begin(), m.ids.end(), id);
   const std::size_t k = static_cast<std::size_t>(it - m.ids.begin());
   m.contact.remove_block(k);
@@ -366,6 +400,8 @@ const std::vector<Vec3>& HybridSystem::structure_part_force() const {
 const std::vector<Vec3>& HybridSystem::structure_part_moment() const {
   return world_ && impl_->mesh >= 0 ? world_->mesh_load(impl_->mesh).part_moment : impl_->no_parts;
 }
+std::size_t HybridSystem::block_particle_bonds() const { return impl_->bonds.size(); }
+std::uint64_t HybridSystem::block_particle_bonds_broken() const { return impl_->bonds_broken_synced; }
 double HybridSystem::rigid_kinetic_energy() const { return world_ ? world_->kinetic_energy() : 0.0; }
 
 }  // namespace hs::bridge

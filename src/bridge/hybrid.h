@@ -82,6 +82,9 @@ struct HybridReport {
   double rigid_dt_limit = 0.0;            ///< the stability rule's bound, s
   double seconds_rigid = 0.0, seconds_bonded = 0.0, seconds_bridge = 0.0;  ///< wall time
   double kinetic_energy_change = 0.0;     ///< sum over conversions of KE after - before, J
+  std::uint64_t ice_bonds_created = 0;    ///< block-particle freeze bonds made at the start
+  std::uint64_t block_bonds_handed_over = 0;  ///< block-particle bonds that became particle bonds
+  std::uint64_t joints_to_bonds = 0;      ///< block-particle bonds made from joints of converted blocks
 };
 
 /// Everything the hybrid system needs besides the engine and the blocks.
@@ -111,6 +114,15 @@ struct BlockInit {
   rigid::BlockDef def;
 };
 
+/// A freeze joint from a starting block to the particle ice (e.g. the keel frozen to the
+/// consolidated layer): bonds the particles against the block's face patch (block_bonds.h).
+struct IceJointInit {
+  std::size_t block = 0;        ///< index into the BlockInit list
+  Vec3 anchor = Vec3::Zero();   ///< world point on the block face, m
+  Vec3 normal = Vec3::UnitZ();  ///< unit, out of the block towards the ice
+  double area = 0.0;            ///< m^2
+};
+
 /// A freeze joint between two starting blocks (indices into the BlockInit list).
 struct JointInit {
   std::size_t a = 0, b = 0;
@@ -126,7 +138,7 @@ class HybridSystem {
   /// (throws hs::InputError at /blocks/rigid_dt if def.rigid_dt exceeds the rule) and, in
   /// AllAtStart mode, converts every block. Call before Engine::distribute().
   HybridSystem(bonded::Engine& engine, const HybridDef& def, const std::vector<BlockInit>& blocks,
-               const std::vector<JointInit>& joints = {});
+               const std::vector<JointInit>& joints = {}, const std::vector<IceJointInit>& ice_joints = {});
   ~HybridSystem();
   HybridSystem(const HybridSystem&) = delete;
   HybridSystem& operator=(const HybridSystem&) = delete;
@@ -143,6 +155,9 @@ class HybridSystem {
   /// Per structure part (same parts as the engine's mesh wall); empty without blocks.
   const std::vector<Vec3>& structure_part_force() const;
   const std::vector<Vec3>& structure_part_moment() const;
+  /// Intact block-particle freeze bonds (this rank) and how many broke (all ranks, synced).
+  std::size_t block_particle_bonds() const;
+  std::uint64_t block_particle_bonds_broken() const;
   /// Kinetic energy of the rigid blocks, J.
   double rigid_kinetic_energy() const;
 

@@ -62,6 +62,7 @@ struct JointSlot {
   bool broken = false;
   BlockId a, b;
   Vec3 normal_in_a = Vec3::UnitZ();  // joint normal in a's body frame
+  Vec3 anchor_in_a = Vec3::Zero();   // anchor in a's body frame
   double area = 1.0;
   JointLoad load;
   btJointFeedback feedback{};
@@ -525,6 +526,13 @@ std::vector<JointId> RigidWorld::joints_of(BlockId id) const {
 
 double RigidWorld::joint_area(JointId id) const { return impl_->joint(id).area; }
 
+FreezeJointDef RigidWorld::joint_def(JointId id) const {
+  const JointSlot& j = impl_->joint(id);
+  const btTransform& ta = impl_->blocks[j.a.index].body->getWorldTransform();
+  return FreezeJointDef{j.a, j.b, from_bt(ta * to_bt(j.anchor_in_a)), from_bt(ta.getBasis() * to_bt(j.normal_in_a)),
+                        j.area};
+}
+
 JointId RigidWorld::add_freeze_joint(const FreezeJointDef& d) {
   Impl& m = *impl_;
   BlockSlot& sa = m.block(d.a);
@@ -551,6 +559,7 @@ JointId RigidWorld::add_freeze_joint(const FreezeJointDef& d) {
   const btTransform& ta = sa.body->getWorldTransform();
   const btTransform& tb = sb.body->getWorldTransform();
   j.normal_in_a = from_bt(ta.getBasis().transpose() * to_bt(d.normal.normalized()));
+  j.anchor_in_a = from_bt(ta.inverse() * to_bt(d.anchor));
   const btTransform anchor(btQuaternion::getIdentity(), to_bt(d.anchor));
   j.constraint = std::make_unique<btFixedConstraint>(*sa.body, *sb.body, ta.inverse() * anchor,
                                                      tb.inverse() * anchor);

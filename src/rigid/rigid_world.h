@@ -198,6 +198,8 @@ class RigidWorld {
   /// Intact freeze joints that hold block `id`, in slot order.
   std::vector<JointId> joints_of(BlockId id) const;
   double joint_area(JointId id) const;
+  /// A joint's blocks, and its anchor and normal (a -> b) carried along with block a, now.
+  FreezeJointDef joint_def(JointId id) const;
 
   JointId add_freeze_joint(const FreezeJointDef& j);
   void remove_joint(JointId id);
