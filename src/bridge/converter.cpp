@@ -8,7 +8,6 @@
 #include <map>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 namespace hs::bridge {
@@ -16,7 +15,6 @@ namespace hs::bridge {
 namespace {
 
 bool finite(const Vec3& v) { return v.allFinite(); }
-
 
 std::string vec_str(const Vec3& v) {
   return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) + ")";
