@@ -58,17 +58,23 @@ inline void rotate_orientation(Quat& q, const Vec3& w, double dt) {
 
 Engine::Engine(const EngineDef& def) : def_(def), dt_auto_(def.dt == 0.0) { dt_ = def.dt; }
 
-std::size_t Engine::add_particle(const ParticleInit& p) {
-  const std::size_t i = ps_.add(p, ps_.next_gid());
+std::size_t Engine::add_particle(const ParticleInit& p) { return add_owned(p, ps_.next_gid()); }
+
+std::size_t Engine::add_owned(const ParticleInit& p, GlobalId id) {
+  const std::size_t i = ps_.add(p, id);
   for (auto& h : wall_hist_) h.push_back(Vec3::Zero());
   need_rebuild_ = true;
   forces_valid_ = false;
-  if (p.radius < min_radius_) {
-    min_radius_ = p.radius;
+  note_radius(p.radius);
+  return i;
+}
+
+void Engine::note_radius(double r) {
+  if (r < min_radius_) {
+    min_radius_ = r;
     if (dt_auto_)  // Eq. 2 follows the smallest particle
       dt_ = def_.dt_alpha * 2.0 * min_radius_ * std::sqrt(def_.density / def_.youngs_modulus);
   }
-  return i;
 }
 
 void Engine::add_bond(GlobalId a, GlobalId b, BondKind kind) {
@@ -87,30 +93,31 @@ void Engine::add_bond(GlobalId a, GlobalId b, BondKind kind) {
   forces_valid_ = false;
 }
 
-std::size_t Engine::bond_touching(std::size_t first, std::size_t last, BondKind kind, double rel_tol) {
-  if (last <= first) return 0;
+std::vector<std::array<std::uint32_t, 2>> touching_pairs(const std::vector<Vec3>& x, const std::vector<double>& radius,
+                                                         double rel_tol) {
+  std::vector<std::array<std::uint32_t, 2>> out;
+  const std::size_t n = x.size();
+  if (n == 0) return out;
   double rmax = 0.0;
-  Vec3 lo = ps_.x[first], hi = lo;
-  for (std::size_t i = first; i < last; ++i) {
-    rmax = std::max(rmax, ps_.radius[i]);
-    lo = lo.cwiseMin(ps_.x[i]);
-    hi = hi.cwiseMax(ps_.x[i]);
+  Vec3 lo = x[0], hi = lo;
+  for (std::size_t i = 0; i < n; ++i) {
+    rmax = std::max(rmax, radius[i]);
+    lo = lo.cwiseMin(x[i]);
+    hi = hi.cwiseMax(x[i]);
   }
   const double h = 2.0 * rmax * (1.0 + rel_tol) * 1.0001;
   const Eigen::Vector3i dims = (((hi - lo) / h).array().floor().cast<int>() + 1).matrix();
   std::unordered_map<std::int64_t, std::vector<std::uint32_t>> cells;
-  auto key = [&](int x, int y, int z) {
-    return (static_cast<std::int64_t>(x) * dims.y() + y) * dims.z() + z;
+  auto key = [&](int cx, int cy, int cz) {
+    return (static_cast<std::int64_t>(cx) * dims.y() + cy) * dims.z() + cz;
   };
-  auto cell = [&](const Vec3& x) { return ((x - lo) / h).array().floor().cast<int>().matrix().eval(); };
-  for (std::size_t i = first; i < last; ++i) {
-    const Eigen::Vector3i c = cell(ps_.x[i]);
+  auto cell = [&](const Vec3& p) { return ((p - lo) / h).array().floor().cast<int>().matrix().eval(); };
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3i c = cell(x[i]);
     cells[key(c.x(), c.y(), c.z())].push_back(static_cast<std::uint32_t>(i));
   }
-  std::size_t made = 0;
-  std::vector<std::pair<GlobalId, GlobalId>> todo;
-  for (std::size_t i = first; i < last; ++i) {
-    const Eigen::Vector3i c = cell(ps_.x[i]);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3i c = cell(x[i]);
     for (int dx = -1; dx <= 1; ++dx)
       for (int dy = -1; dy <= 1; ++dy)
         for (int dz = -1; dz <= 1; ++dz) {
@@ -120,17 +127,24 @@ std::size_t Engine::bond_touching(std::size_t first, std::size_t last, BondKind 
           if (it == cells.end()) continue;
           for (std::uint32_t j : it->second) {
             if (j <= i) continue;
-            const double lim = (ps_.radius[i] + ps_.radius[j]) * (1.0 + rel_tol);
-            if ((ps_.x[j] - ps_.x[i]).squaredNorm() <= lim * lim) todo.emplace_back(ps_.gid[i], ps_.gid[j]);
+            const double lim = (radius[i] + radius[j]) * (1.0 + rel_tol);
+            if ((x[j] - x[i]).squaredNorm() <= lim * lim) out.push_back({static_cast<std::uint32_t>(i), j});
           }
         }
   }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+std::size_t Engine::bond_touching(std::size_t first, std::size_t last, BondKind kind, double rel_tol) {
+  if (last <= first) return 0;
+  const std::vector<Vec3> x(ps_.x.begin() + first, ps_.x.begin() + last);
+  const std::vector<double> r(ps_.radius.begin() + first, ps_.radius.begin() + last);
+  std::vector<std::pair<GlobalId, GlobalId>> todo;
+  for (const auto& [a, b] : touching_pairs(x, r, rel_tol)) todo.emplace_back(ps_.gid[first + a], ps_.gid[first + b]);
   std::sort(todo.begin(), todo.end());
-  for (auto& [a, b] : todo) {
-    add_bond(a, b, kind);
-    ++made;
-  }
-  return made;
+  for (auto& [a, b] : todo) add_bond(a, b, kind);
+  return todo.size();
 }
 
 int Engine::add_wall(const PlaneWall& w) {

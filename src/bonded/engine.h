@@ -163,6 +163,34 @@ struct MeshWallLoad {
   std::size_t contacts = 0;
 };
 
+/// A bonded lattice to add to an engine that may already be running (Engine::insert_lattice),
+/// e.g. a rigid block turned into particles. Under MPI every rank passes the same one.
+struct LatticeInsert {
+  std::vector<ParticleInit> sites;
+  std::vector<std::array<std::uint32_t, 2>> bonds;  ///< pairs of site indices, bonded stress free
+  BondKind kind = BondKind::Lattice;
+  /// Drop the sites that would start in contact overlap with existing particles
+  /// (Engine::overlapping_sites), and their bonds.
+  bool drop_overlapping = true;
+  /// sites.push_back(p), out of line on purpose: with -march=native GCC contracts the caller's
+  /// site arithmetic into FMAs differently when push_back inlines into its loop (the converter's
+  /// velocities moved by 1 ulp); a loop calling this compiles like one calling add_particle.
+  void add_site(const ParticleInit& p);
+};
+
+/// What Engine::insert_lattice did: the same on every rank, figures over all ranks.
+struct LatticeInsertReport {
+  static constexpr GlobalId kDropped = ~GlobalId{0};
+  std::vector<GlobalId> gid;  ///< per site: its global id, or kDropped
+  GlobalId first_gid = 0;     ///< the kept sites have first_gid, first_gid + 1, ... in site order
+  std::size_t particles_created = 0, particles_dropped = 0, bonds_created = 0;
+};
+
+/// Pairs (i, j), i < j, ascending, of the spheres (x, radius) whose centres lie within
+/// (r_i + r_j)(1 + rel_tol) of each other: the bonds of a lattice of touching spheres.
+std::vector<std::array<std::uint32_t, 2>> touching_pairs(const std::vector<Vec3>& x, const std::vector<double>& radius,
+                                                         double rel_tol = 1e-6);
+
 struct EnergyReport {
   double kinetic_translational = 0, kinetic_rotational = 0;
   double gravity_potential = 0, buoyancy_potential = 0;
@@ -192,6 +220,20 @@ class Engine {
   /// (r_i + r_j)(1 + rel_tol) of each other. Returns the number of bonds made.
   std::size_t bond_touching(std::size_t first, std::size_t last, BondKind kind,
                             double rel_tol = 1e-6);
+  /// Per site (centre x[k], radius radius[k]): 1 when it lies closer than r_j + radius[k] to an
+  /// existing particle j, i.e. would start in contact overlap (exactly touching is not overlap).
+  /// Collective under MPI: each rank tests its owned particles, the masks are OR-reduced, every
+  /// rank gets the same mask.
+  std::vector<char> overlapping_sites(const std::vector<Vec3>& x, const std::vector<double>& radius) const;
+  /// Adds a bonded lattice at any time, serial or distributed (collective under MPI: every rank
+  /// passes the same `lat`). Kept sites get consecutive global ids in site order from a counter
+  /// that every rank holds alike, so the ids do not depend on the rank count. Serial: the same as
+  /// add_particle for each kept site, then add_bond in ascending id order. Under MPI each rank adds
+  /// the kept sites in its box and the bonds whose lower-id site it owns, then makes new ghosts and
+  /// binds every new bond by id (a partner out of reach throws SimulationError on every rank) and
+  /// rebuilds the neighbour lists. Throws std::invalid_argument (on every rank, nothing added) for
+  /// a site without positive mass and radius, or a bond out of range, to itself or listed twice.
+  LatticeInsertReport insert_lattice(const LatticeInsert& lat);
   int add_wall(const PlaneWall& w);
   /// Adds a moving triangle-mesh wall; throws hs::InputError if the mesh is invalid.
   int add_mesh_wall(MeshWallDef def);
@@ -281,13 +323,27 @@ class Engine {
   /// Loads, broken-bond counts and the blow-up flag summed over ranks; returns "unstable anywhere".
   bool finish_forces(bool bad_here);
   bool unstable_here(double worst_v2) const;
+  /// add_particle with a given id (the counter moves past it).
+  std::size_t add_owned(const ParticleInit& p, GlobalId id);
+  /// A particle of radius r joins the system somewhere (any rank): the skin and Eq. 2 follow it.
+  void note_radius(double r);
   void build_neighbors();
   /// Neighbour rebuild; under MPI first migration, load balance and new ghost lists.
   void rebuild();
   /// Rebuild if anyone needs it, else refresh ghosts (collective under MPI).
   void sync_before_forces();
   // engine_parallel.cpp
-  void exchange_full();
+  void exchange_full();  ///< drop_ghosts() then redistribute()
+  /// Ghosts go: contact history to global-id keys, bond lengths measured (owned may be added now).
+  void drop_ghosts();
+  /// Load balance, migration to the owners, new ghost lists and bond bindings, bond counts.
+  void redistribute();
+  struct NewBond {
+    GlobalId gi, gj;         ///< gi < gj
+    std::uint32_t si, sj;    ///< their sites
+  };
+  /// The MPI half of insert_lattice (engine_insert.cpp).
+  void insert_distributed(const LatticeInsert& lat, const std::vector<GlobalId>& gid, const std::vector<NewBond>& bonds);
   void migrate(const std::vector<int>& dest, bool any_rank);
   void drop_owned(const std::vector<char>& keep);
   void make_ghosts();

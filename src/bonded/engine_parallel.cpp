@@ -123,6 +123,8 @@ void Engine::distribute(const par::Comm& comm, const ParallelDef& def) {
   }
   dom_ = par::Decomposition(dims);
   dom_.set_uniform(lo, hi);
+  // One id counter on every rank (insert_lattice hands out ids from it): the largest anywhere.
+  ps_.advance_gid(static_cast<GlobalId>(comm.max(static_cast<double>(ps_.next_gid()))));
   // Keep this rank's share: particles in its box, bonds whose lower-id particle it owns.
   // The first exchange below balances the cuts by cost and moves particles accordingly.
   pairs_.clear();
@@ -209,7 +211,14 @@ void Engine::maybe_balance(bool force) {
 void Engine::exchange_full() {
   const auto t0 = SteadyClock::now();
   ++pstats_.exchanges;
+  drop_ghosts();
+  redistribute();
+  pstats_.comm_seconds += seconds_since(t0);
+}
+
+void Engine::drop_ghosts() {
   // 1. Ghosts go; contact history leaves the pair list for global-id keys (oriented low -> high).
+  // The pair list stays (its owned ends still count in the load balance) until redistribute().
   const std::size_t n = ps_.owned();
   // Longest bond before the ghosts go (every bond's two ends are present now).
   // (Right after distribute() the far ends are not bound yet: keep the length measured there.)
@@ -229,6 +238,10 @@ void Engine::exchange_full() {
                                ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
   ps_.truncate(n);
   for (auto& h : wall_hist_) h.resize(n);
+}
+
+void Engine::redistribute() {
+  const std::size_t n = ps_.owned();
   // 2. Load balance (moves the cuts) while the pair counts still describe the work.
   const std::uint64_t balances_before = pstats_.balances;
   maybe_balance(false);
@@ -248,7 +261,6 @@ void Engine::exchange_full() {
   // 4. New ghost lists (the halo covers contacts within the skin and every bond's partner).
   make_ghosts();
   refresh_bond_counts();
-  pstats_.comm_seconds += seconds_since(t0);
 }
 
 void Engine::migrate(const std::vector<int>& dest, bool any_rank) {

@@ -13,6 +13,7 @@
 
 #include "types.h"
 
+#include <algorithm>
 #include <unordered_map>
 #include <vector>
 
@@ -80,6 +81,9 @@ class ParticleStore {
   /// Next unused global id (ids are never reused).
   GlobalId next_gid() const { return next_gid_; }
   GlobalId add_auto(const ParticleInit& p) { return gid[add(p, next_gid_)]; }
+  /// Moves the counter on to at least `next` (under MPI every rank keeps the same counter:
+  /// ids handed out on one rank are skipped on the others).
+  void advance_gid(GlobalId next) { next_gid_ = std::max(next_gid_, next); }
 
   ParticleRecord record(std::size_t i) const;
   /// Appends a particle at the end of the arrays (the caller keeps n_owned / n_ghost right).

@@ -8,7 +8,6 @@
 #include <map>
 #include <stdexcept>
 #include <string>
-#include <unordered_map>
 #include <vector>
 
 namespace hs::bridge {
@@ -20,19 +19,6 @@ bool finite(const Vec3& v) { return v.allFinite(); }
 std::string vec_str(const Vec3& v) {
   return "(" + std::to_string(v.x()) + ", " + std::to_string(v.y()) + ", " + std::to_string(v.z()) + ")";
 }
-
-// Existing particles binned in a uniform grid of cell h >= r_max + D/2, for the overlap test.
-struct OverlapGrid {
-  double h;
-  std::unordered_map<std::int64_t, std::vector<std::uint32_t>> cells;
-  static std::int64_t key(std::int64_t x, std::int64_t y, std::int64_t z) {
-    // 21 bits per axis, offset so that negative cells map uniquely (|cell| < 2^20).
-    return ((x + (1 << 20)) << 42) | ((y + (1 << 20)) << 21) | (z + (1 << 20));
-  }
-  Eigen::Matrix<std::int64_t, 3, 1> cell(const Vec3& x) const {
-    return (x / h).array().floor().cast<std::int64_t>().matrix();
-  }
-};
 
 }  // namespace
 
@@ -47,11 +33,12 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
                                const SiteBlocked& blocked) {
   using namespace hs::bonded;
   // ---- input checks ----
-  if (engine.parallel())
-    throw std::logic_error("convert_block: the converter is serial; convert before Engine::distribute()");
+  // Under MPI every rank runs all of this on the same block (the rigid world is replicated)
+  // and gets the same sites; the engine keeps each rank's share.
+  const bool distributed = engine.parallel();
   ParticleStore& ps = engine.particles();
-  if (ps.n_ghost != 0)
-    throw std::logic_error("convert_block: the engine holds ghost particles; convert before Engine::distribute()");
+  if (!distributed && ps.n_ghost != 0)
+    throw std::logic_error("convert_block: a serial engine holding ghost particles");
   const double D = mat.diameter;
   if (!(D > 0.0) || !std::isfinite(D))
     throw InputError("material/diameter", "particle diameter must be positive and finite, got " + std::to_string(D));
@@ -117,39 +104,17 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
                            " m from the block centre, more than one lattice spacing");
   for (auto& p : x) p += shift;
 
-  // ---- 3. drop sites overlapping existing particles ----
-  const std::size_t n_old = ps.size();
-  std::vector<char> keep(x.size(), 1);
+  // ---- 3. drop sites overlapping existing particles (on any rank) ----
+  const std::vector<char> drop = engine.overlapping_sites(x, std::vector<double>(x.size(), 0.5 * D));
   std::size_t dropped = 0;
-  if (n_old > 0) {
-    double rmax = 0.0;
-    for (std::size_t j = 0; j < n_old; ++j) rmax = std::max(rmax, ps.radius[j]);
-    OverlapGrid g{rmax + 0.5 * D, {}};
-    for (std::size_t j = 0; j < n_old; ++j) {
-      const auto k = g.cell(ps.x[j]);
-      g.cells[OverlapGrid::key(k.x(), k.y(), k.z())].push_back(static_cast<std::uint32_t>(j));
-    }
-    for (std::size_t i = 0; i < x.size(); ++i) {
-      const auto k = g.cell(x[i]);
-      bool hit = false;
-      for (int dx = -1; dx <= 1 && !hit; ++dx)
-        for (int dy = -1; dy <= 1 && !hit; ++dy)
-          for (int dz = -1; dz <= 1 && !hit; ++dz) {
-            auto it = g.cells.find(OverlapGrid::key(k.x() + dx, k.y() + dy, k.z() + dz));
-            if (it == g.cells.end()) continue;
-            for (std::uint32_t j : it->second)
-              if ((ps.x[j] - x[i]).norm() < ps.radius[j] + 0.5 * D) { hit = true; break; }
-          }
-      if (hit) { keep[i] = 0; ++dropped; }
-    }
-  }
-  if (blocked)
-    for (std::size_t i = 0; i < x.size(); ++i)
-      if (keep[i] && blocked(x[i], 0.5 * D)) { keep[i] = 0; ++dropped; }
   std::vector<Vec3> kept;
-  kept.reserve(x.size() - dropped);
-  for (std::size_t i = 0; i < x.size(); ++i)
-    if (keep[i]) kept.push_back(x[i]);
+  kept.reserve(x.size());
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (drop[i] || (blocked && blocked(x[i], 0.5 * D)))
+      ++dropped;
+    else
+      kept.push_back(x[i]);
+  }
   if (kept.empty())
     throw InputError("block", "every lattice site of the block overlaps existing particles; nothing to convert");
 
@@ -176,8 +141,7 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   const Vec3 wp = Ip.ldlt().solve(L_cp);
 
   ConversionReport rep;
-  rep.first = n_old;
-  rep.first_gid = ps.next_gid();
+  rep.first = distributed ? ConversionReport::kNoIndex : ps.size();
   rep.particles_dropped = dropped;
   rep.sites_trimmed = trimmed;
   rep.mass = M;
@@ -188,7 +152,9 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   rep.angular_momentum_before = Ib * w + c.cross(M * v);
   rep.kinetic_energy_before = 0.5 * M * v.squaredNorm() + 0.5 * w.dot(Ib * w);
 
-  ps.reserve(n_old + kept.size());
+  // ---- 6. particles and their lattice bonds (each rank keeps those in its box) ----
+  LatticeInsert lat;
+  lat.sites.reserve(kept.size());
   for (const auto& p : kept) {
     ParticleInit pi;
     pi.x = p;
@@ -199,20 +165,45 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
     pi.mass = m;
     pi.buoyant_volume = Vb;
     pi.material = mat.material;
-    engine.add_particle(pi);
+    lat.add_site(pi);  // (out of line: see LatticeInsert::add_site)
   }
-  rep.particles_created = kept.size();
+  lat.bonds = touching_pairs(kept, std::vector<double>(kept.size(), r));
+  lat.kind = BondKind::Lattice;
+  lat.drop_overlapping = false;  // done above: the masses and velocities depend on what is kept
+  const std::size_t n_old = ps.size();
+  if (!distributed) ps.reserve(n_old + kept.size());
+  const LatticeInsertReport ins = engine.insert_lattice(lat);
+  rep.first_gid = ins.first_gid;
+  rep.bonds_created = ins.bonds_created;
 
-  // ---- 6. lattice bonds among the new particles ----
-  rep.bonds_created = engine.bond_touching(n_old, ps.size(), BondKind::Lattice);
-
+  // ---- what the engine now holds, measured on the particles (summed over the ranks) ----
   Vec3 P = Vec3::Zero(), L = Vec3::Zero();
-  double ke = 0.0;
-  for (std::size_t i = n_old; i < ps.size(); ++i) {
+  double ke = 0.0, count = 0.0;
+  auto add = [&](std::size_t i) {
     P += ps.mass[i] * ps.v[i];
     L += ps.x[i].cross(ps.mass[i] * ps.v[i]) + Is * ps.omega[i];
     ke += 0.5 * ps.mass[i] * ps.v[i].squaredNorm() + 0.5 * Is * ps.omega[i].squaredNorm();
+    count += 1.0;
+  };
+  if (!distributed) {
+    for (std::size_t i = n_old; i < ps.size(); ++i) add(i);
+  } else {
+    const GlobalId end = ins.first_gid + ins.particles_created;
+    for (std::size_t i = 0; i < ps.owned(); ++i)
+      if (ps.gid[i] >= ins.first_gid && ps.gid[i] < end) add(i);
+    // Reduced on rank 0 and broadcast: the replicated rigid side may act on these figures, so
+    // every rank must hold the same bits.
+    double sums[8] = {P.x(), P.y(), P.z(), L.x(), L.y(), L.z(), ke, count};
+    engine.comm().sum_same_everywhere(sums, 8);
+    P = Vec3(sums[0], sums[1], sums[2]);
+    L = Vec3(sums[3], sums[4], sums[5]);
+    ke = sums[6];
+    count = sums[7];
   }
+  if (count != static_cast<double>(kept.size()))
+    throw std::logic_error("convert_block: " + std::to_string(count) + " particles inserted for " +
+                           std::to_string(kept.size()) + " lattice sites");
+  rep.particles_created = kept.size();
   rep.linear_momentum_after = P;
   rep.angular_momentum_after = L;
   rep.kinetic_energy_after = ke;

@@ -1,6 +1,6 @@
 // Block -> particle converter (docs/bridge.md): turns a rigid ice block into a bonded HCP
-// lattice of particles inside a serial hs::bonded::Engine, conserving the block's mass,
-// displaced volume, linear momentum and angular momentum exactly.
+// lattice of particles inside an hs::bonded::Engine (serial or distributed over MPI ranks),
+// conserving the block's mass, displaced volume, linear momentum and angular momentum exactly.
 //
 // Method, in order:
 //   1. Lattice: hs::bonded::hcp_fill_box(half_extents - (D/4, 0, 0), pose, D) in the block's own
@@ -19,8 +19,15 @@
 //      I_block = R diag(M/3 (b^2+c^2), ...) R^T. Linear momentum is M v and angular momentum
 //      about any point equals the block's (sum m_i r_i = 0). Kinetic energy is not conserved in
 //      general (the lattice's inertia differs from the box's); the change is reported.
-//   6. Bonds: Engine::bond_touching over the new particles (BondKind::Lattice), stress free.
+//   6. Insertion: the kept sites and their lattice bonds (every pair D apart, BondKind::Lattice,
+//      stress free) go into the engine through Engine::insert_lattice.
 // Global ids come from the engine's counter: same engine state and inputs, same ids.
+//
+// Under MPI (docs/parallel.md, "Conversion under MPI") every rank calls convert_block with the
+// same block (the rigid world is replicated) and computes the same sites; the overlap test runs
+// against every rank's particles (one reduction), and Engine::insert_lattice keeps on each rank
+// the particles in its box and the bonds whose lower id it owns. Ids do not depend on the rank
+// count; the report's figures are summed over the ranks and identical on every rank.
 #pragma once
 
 #include "bonded/engine.h"
@@ -51,12 +58,16 @@ struct IceMaterial {
 };
 
 struct ConversionReport {
-  std::size_t first = 0;              ///< index of the first new particle in the store
-  std::size_t particles_created = 0;  ///< new particles are [first, first + particles_created)
+  static constexpr std::size_t kNoIndex = ~std::size_t{0};
+  /// Serial: index of the first new particle in the store, the new ones being
+  /// [first, first + particles_created). Under MPI kNoIndex: they are spread over the ranks and
+  /// the store is re-sorted; find them by id.
+  std::size_t first = 0;
+  std::size_t particles_created = 0;  ///< over all ranks
   std::size_t particles_dropped = 0;  ///< lattice sites dropped for overlapping existing particles
   std::size_t sites_trimmed = 0;      ///< lattice sites trimmed to give every layer the same count
   std::size_t bonds_created = 0;
-  GlobalId first_gid = 0;     ///< ids are first_gid, first_gid + 1, ... in store order
+  GlobalId first_gid = 0;     ///< ids are first_gid, first_gid + 1, ... in lattice-site order
   double mass = 0.0;                  ///< M, kg (= sum of the new particles' masses)
   double volume = 0.0;                ///< V_block, m^3 (= sum of their buoyant volumes)
   Vec3 lattice_shift = Vec3::Zero();  ///< translation applied to the lattice (step 2), m
@@ -70,12 +81,13 @@ struct ConversionReport {
 /// Inertia tensor (world frame, about its centre) of a solid box of mass M, kg m^2.
 Mat3 box_inertia_world(const Vec3& half_extents, const Quat& orientation, double mass);
 
-/// Converts `block` into bonded particles appended to `engine` (serial, before distribute()).
-/// Throws hs::InputError (path "block" or "material") on bad input and std::logic_error when the
-/// engine is distributed over MPI or holds ghosts.
 /// Optional extra obstacle test for lattice sites: true drops the site (e.g. it would start inside
-/// another rigid block). Called with the site centre and the particle radius D/2.
+/// another rigid block). Called with the site centre and the particle radius D/2; under MPI it
+/// must give the same answer on every rank (it sees replicated data, e.g. the rigid world).
 using SiteBlocked = std::function<bool(const Vec3& site, double radius)>;
+/// Converts `block` into bonded particles added to `engine`, serial or distributed (then
+/// collective: every rank passes the same block and material). Throws hs::InputError (path
+/// "block" or "material") on bad input, on every rank alike, and adds nothing then.
 ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& material,
                                const SiteBlocked& blocked = {});
 

@@ -230,3 +230,78 @@ TEST(Engine, FrictionHistoryIsCarriedThroughNeighbourRebuilds) {
   EXPECT_LT(std::abs(quiet.first.x()), 1e-3) << "static friction must hold the slider";
   EXPECT_LT((busy.first - quiet.first).norm(), 1e-9);
 }
+
+TEST(Engine, InsertLatticeEqualsAddingParticlesAndBondingThem) {
+  // insert_lattice into a running engine: the kept sites get the next ids in site order, the
+  // same particles and bonds (bit for bit) as add_particle + bond_touching; sites overlapping an
+  // existing particle are dropped with their bonds; bad input changes nothing.
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), 0.5 * ice.D, INFINITY, INFINITY, 0.1,
+                                                 0.5 * ice.cell_mass(), 0.05 * ice.cell_mass() * ice.D * ice.D);
+  Engine a(d), b(d);
+  for (Engine* e : {&a, &b}) {
+    e->add_particle(test::sphere_at(ice, Vec3(-1.0, 0.0, 0.0)));
+    e->add_particle(test::sphere_at(ice, Vec3(5.0, 0.0, 0.0)));
+    e->run(3);
+  }
+  LatticeInsert lat;
+  std::vector<Vec3> xs;
+  for (const auto& c : hcp_fill_box(Vec3(1.5, 1.0, 0.45), Pose{Vec3(0.2, 0.1, 0.0), Quat(Eigen::AngleAxisd(0.3, Vec3::UnitZ()))}, ice.D)) {
+    auto p = test::sphere_at(ice, c, true);
+    p.v = Vec3(0.1, 0.0, -0.2);
+    p.q = Quat(Eigen::AngleAxisd(0.3, Vec3::UnitZ()));
+    lat.sites.push_back(p);
+    xs.push_back(c);
+  }
+  lat.bonds = touching_pairs(xs, std::vector<double>(xs.size(), 0.5 * ice.D));
+  const std::size_t n_old = b.particles().size();
+  const LatticeInsertReport r = a.insert_lattice(lat);
+  // The same by hand: keep the sites clear of the particle at (-1, 0, 0), add, bond.
+  std::size_t kept = 0;
+  for (const auto& s : lat.sites)
+    if ((s.x - Vec3(-1.0, 0.0, 0.0)).norm() >= 0.5 * ice.D + 0.5 * ice.D) {  // (the one at (5, 0, 0) is far)
+      b.add_particle(s);
+      ++kept;
+    }
+  const std::size_t bonds_by_hand = b.bond_touching(n_old, b.particles().size(), BondKind::Lattice);
+  EXPECT_GT(r.particles_dropped, 0u);
+  EXPECT_EQ(r.particles_created, kept);
+  EXPECT_EQ(r.first_gid, 2u);
+  EXPECT_EQ(r.bonds_created, bonds_by_hand);
+  ASSERT_EQ(a.particles().size(), b.particles().size());
+  for (std::size_t i = 0; i < a.particles().size(); ++i) {
+    EXPECT_EQ(a.particles().gid[i], b.particles().gid[i]);
+    EXPECT_EQ(a.particles().x[i], b.particles().x[i]);
+    EXPECT_EQ(a.particles().v[i], b.particles().v[i]);
+    EXPECT_EQ(a.particles().bond_count[i], b.particles().bond_count[i]);
+  }
+  ASSERT_EQ(a.bonds().size(), b.bonds().size());
+  for (std::size_t k = 0; k < a.bonds().size(); ++k) {
+    EXPECT_EQ(a.bonds()[k].gi, b.bonds()[k].gi);
+    EXPECT_EQ(a.bonds()[k].gj, b.bonds()[k].gj);
+    EXPECT_EQ(a.bonds()[k].ref.ri, b.bonds()[k].ref.ri);
+    EXPECT_EQ(a.bonds()[k].ref.c.coeffs(), b.bonds()[k].ref.c.coeffs());
+  }
+  for (std::size_t k = 0; k < lat.sites.size(); ++k)  // ids in site order, kDropped for the dropped
+    if (r.gid[k] != LatticeInsertReport::kDropped) {
+      EXPECT_EQ(a.particles().x[a.particles().local(r.gid[k])], lat.sites[k].x);
+    }
+  EXPECT_EQ(a.particles().next_gid(), r.first_gid + r.particles_created);
+  a.run(20);
+  b.run(20);
+  EXPECT_EQ(a.particles().x.back(), b.particles().x.back());
+  // Refused: a bond listed twice, one to a missing site, a site without mass. Nothing added.
+  const std::size_t n = a.particles().size(), nb = a.bonds().size();
+  LatticeInsert bad = lat;
+  bad.bonds.push_back({lat.bonds[0][1], lat.bonds[0][0]});
+  EXPECT_THROW(a.insert_lattice(bad), std::invalid_argument);
+  bad = lat;
+  bad.bonds.push_back({0, static_cast<std::uint32_t>(lat.sites.size())});
+  EXPECT_THROW(a.insert_lattice(bad), std::invalid_argument);
+  bad = lat;
+  bad.sites[3].mass = 0.0;
+  EXPECT_THROW(a.insert_lattice(bad), std::invalid_argument);
+  EXPECT_EQ(a.particles().size(), n);
+  EXPECT_EQ(a.bonds().size(), nb);
+}

@@ -1,63 +1,22 @@
 // The distributed engine against the serial one, inside one mpirun: every rank builds the same
 // system twice, runs one copy alone (par::serial()) and the other spread over all ranks, and
 // compares the particles it owns by global id. Run by ctest at 1, 2 and 3 ranks.
-#include "../bonded/fixtures.h"
-#include "bonded/contact_linear.h"
+#include "mpi_fixtures.h"
 #include "common/error.h"
-#include "parallel/comm.h"
 
 #include <gtest/gtest.h>
 
 #include <cstdio>
-#include <functional>
 #include <random>
 
 namespace hs::bonded {
 namespace {
 
-const par::Comm* g_comm = nullptr;
-const par::Comm& world() { return *g_comm; }
-
-using Builder = std::function<void(Engine&)>;
-
-struct Pair {
-  std::unique_ptr<Engine> serial, dist;
-};
-
-Pair make_pair_of(const EngineDef& d, const Builder& build, const ParallelDef& pd = {}) {
-  Pair p{std::make_unique<Engine>(d), std::make_unique<Engine>(d)};
-  build(*p.serial);
-  build(*p.dist);
-  p.dist->distribute(world(), pd);
-  return p;
-}
-
-/// Largest |x_dist - x_serial| over all particles (all ranks).
-double max_position_difference(const Engine& dist, const Engine& serial) {
-  const auto& a = dist.particles();
-  const auto& b = serial.particles();
-  double m = 0.0;
-  for (std::size_t i = 0; i < a.owned(); ++i) {
-    const auto j = b.local(a.gid[i]);
-    if (j == ParticleStore::kNone) {  // (still join the collective below)
-      m = INFINITY;
-      break;
-    }
-    m = std::max(m, (a.x[i] - b.x[j]).cwiseAbs().maxCoeff());
-  }
-  return world().max(m);
-}
-
-EngineDef ice_def(double strength, double mu = 0.3) {
-  test::Ice ice;
-  EngineDef d = test::no_field_def(ice);
-  d.contact.mu = mu;
-  d.contact.zeta_n = d.contact.zeta_t = damping_ratio_from_restitution(0.3);
-  const double m = ice.cell_mass(), I = 0.4 * m * 0.25 * ice.D * ice.D;
-  d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), 0.5 * ice.D, strength, strength, 0.1, 0.5 * m,
-                                                 0.5 * I);
-  return d;
-}
+using test::ice_def;
+using test::make_pair_of;
+using test::max_position_difference;
+using test::world;
+using Pair = test::EnginePair;
 
 TEST(Parallel, BondedBarAcrossRankBoundaryMovesAsInSerial) {
   // A 6 m HCP bar along x, centred on x = 0 (the 2-rank cut), vibrating in bending and twisting
@@ -276,22 +235,3 @@ TEST(Parallel, InstabilityOnOneRankStopsEveryRank) {
 
 }  // namespace
 }  // namespace hs::bonded
-
-namespace hs {
-const par::Comm& test_world() { return *bonded::g_comm; }
-}  // namespace hs
-
-int main(int argc, char** argv) {
-  hs::par::Session session(&argc, &argv);
-  hs::bonded::g_comm = &session.world();
-  ::testing::InitGoogleTest(&argc, argv);
-  // Only rank 0 prints gtest's report (every rank still runs and checks every assertion).
-  if (session.world().rank() != 0) {
-    auto& listeners = ::testing::UnitTest::GetInstance()->listeners();
-    delete listeners.Release(listeners.default_result_printer());
-  }
-  const int rc = RUN_ALL_TESTS();
-  // A failure on any rank fails the run.
-  const std::int64_t bad = session.world().sum(static_cast<std::int64_t>(rc != 0));
-  return bad ? 1 : 0;
-}

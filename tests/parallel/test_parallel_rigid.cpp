@@ -12,7 +12,7 @@
 #include <cstdio>
 
 namespace hs {
-const par::Comm& test_world();  // test_parallel_engine.cpp
+const par::Comm& test_world();  // mpi_main.cpp
 namespace {
 
 TEST(Decomposition, CutsSitAtEqualCostQuantilesAndEveryPointHasOneOwner) {

@@ -1,0 +1,65 @@
+// Helpers shared by the MPI tests: the world communicator, and a system built twice on every
+// rank, one copy kept serial (par::serial()) and one distributed, compared by global id.
+#pragma once
+
+#include "../bonded/fixtures.h"
+#include "bonded/contact_linear.h"
+#include "parallel/comm.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <memory>
+
+namespace hs {
+const par::Comm& test_world();  // mpi_main.cpp
+}  // namespace hs
+
+namespace hs::test {
+
+inline const par::Comm& world() { return test_world(); }
+
+using Builder = std::function<void(bonded::Engine&)>;
+
+struct EnginePair {
+  std::unique_ptr<bonded::Engine> serial, dist;
+};
+
+inline EnginePair make_pair_of(const bonded::EngineDef& d, const Builder& build, const bonded::ParallelDef& pd = {}) {
+  EnginePair p{std::make_unique<bonded::Engine>(d), std::make_unique<bonded::Engine>(d)};
+  build(*p.serial);
+  build(*p.dist);
+  p.dist->distribute(world(), pd);
+  return p;
+}
+
+/// Largest |x_dist - x_serial| (per component) over all particles (all ranks); infinite when a
+/// particle the distributed copy owns is missing from the serial one.
+inline double max_position_difference(const bonded::Engine& dist, const bonded::Engine& serial) {
+  const auto& a = dist.particles();
+  const auto& b = serial.particles();
+  double m = 0.0;
+  for (std::size_t i = 0; i < a.owned(); ++i) {
+    const auto j = b.local(a.gid[i]);
+    if (j == bonded::ParticleStore::kNone) {  // (still join the collective below)
+      m = INFINITY;
+      break;
+    }
+    m = std::max(m, (a.x[i] - b.x[j]).cwiseAbs().maxCoeff());
+  }
+  return world().max(m);
+}
+
+/// Ice with bonds of the given strength (Pa) and contact damping from restitution 0.3.
+inline bonded::EngineDef ice_def(double strength, double mu = 0.3) {
+  Ice ice;
+  bonded::EngineDef d = no_field_def(ice);
+  d.contact.mu = mu;
+  d.contact.zeta_n = d.contact.zeta_t = bonded::damping_ratio_from_restitution(0.3);
+  const double m = ice.cell_mass(), I = 0.4 * m * 0.25 * ice.D * ice.D;
+  d.bond[0] = bonded::ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), 0.5 * ice.D, strength, strength, 0.1,
+                                                         0.5 * m, 0.5 * I);
+  return d;
+}
+
+}  // namespace hs::test
