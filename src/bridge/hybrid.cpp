@@ -8,6 +8,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 #include <sstream>
 
 namespace hs::bridge {
@@ -279,8 +280,20 @@ void HybridSystem::apply_policy() {
                                         ? m.def.world.freeze_bond_strength
                                         : m.def.world.freeze_bond_shear_strength};
   // Particle contact forces on each block in the last force evaluation (recorded by BlockContact).
+  // Under MPI each rank holds the contacts of its own particles: they are gathered on rank 0,
+  // which decides, and the list of blocks to convert is broadcast, so that every rank's
+  // replicated world converts the same blocks.
+  const par::Comm& comm = engine_.comm();
+  const auto& rec = m.contact.recorded();
+  par::Bytes mine(rec.size() * sizeof(BlockContact::PointForce));
+  if (!rec.empty()) std::memcpy(mine.data(), rec.data(), mine.size());
+  const par::Bytes all = comm.parallel() ? comm.gather(mine) : mine;
   std::vector<std::vector<PointLoad>> particle_loads(m.ids.size());
-  for (const auto& pf : m.contact.recorded()) particle_loads[pf.block].push_back({pf.point, pf.force});
+  for (std::size_t o = 0; o + sizeof(BlockContact::PointForce) <= all.size(); o += sizeof(BlockContact::PointForce)) {
+    BlockContact::PointForce pf;
+    std::memcpy(static_cast<void*>(&pf), all.data() + o, sizeof pf);
+    particle_loads[pf.block].push_back({pf.point, pf.force});
+  }
   auto k_of = [&](rigid::BlockId id) {
     return static_cast<std::size_t>(std::find(m.ids.begin(), m.ids.end(), id) - m.ids.begin());
   };
@@ -288,7 +301,8 @@ void HybridSystem::apply_policy() {
   std::vector<bool> by_freeze;
   std::vector<FreezeJointSample> joints;
   std::vector<PointLoad> loads;
-  for (const rigid::BlockId id : world_->blocks()) {
+  const bool decide_here = comm.rank() == 0;
+  for (const rigid::BlockId id : decide_here ? world_->blocks() : std::vector<rigid::BlockId>{}) {
     if (world_->fixed(id)) continue;  // fixed blocks are walls and floors, not ice
     if (id.index < m.unconvertible.size() && m.unconvertible[id.index]) continue;
     const Vec3 x = world_->position(id), half = world_->half_extents(id);
@@ -314,6 +328,26 @@ void HybridSystem::apply_policy() {
       to_convert.push_back(id);
       by_freeze.push_back(st.governing == StressMode::FreezeBond);
     }
+  }
+  if (comm.parallel()) {  // rank 0's decision to every rank: (slot, generation, by_freeze) triples
+    std::string msg;
+    if (decide_here)
+      for (std::size_t k = 0; k < to_convert.size(); ++k) {
+        const std::uint32_t rec3[3] = {to_convert[k].index, to_convert[k].generation, by_freeze[k] ? 1u : 0u};
+        msg.append(reinterpret_cast<const char*>(rec3), sizeof rec3);
+      }
+    msg = comm.broadcast(msg);
+    to_convert.clear();
+    by_freeze.clear();
+    for (std::size_t o = 0; o + 12 <= msg.size(); o += 12) {
+      std::uint32_t rec3[3];
+      std::memcpy(rec3, msg.data() + o, sizeof rec3);
+      to_convert.push_back(rigid::BlockId{rec3[0], rec3[1]});
+      by_freeze.push_back(rec3[2] != 0);
+    }
+    double mu = report_.max_utilisation;
+    comm.max(&mu, 1);
+    report_.max_utilisation = mu;
   }
   for (std::size_t k = 0; k < to_convert.size(); ++k) {
     try {
@@ -356,12 +390,18 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
     return false;
   };
   const ConversionReport r = convert_block(engine_, b, m.def.ice, inside_other);
+  const bool indexed = r.first != ConversionReport::kNoIndex;  // serial: the new particles' range
   // Freeze bonds carry over: the block's bonds to particles become particle-particle freeze
   // bonds to its new particles, and its joints to other blocks become block-particle bonds.
+  // (Serial only: under MPI block-particle bonds cannot be made after distribute(), and the
+  // released ones are dropped; docs/bridge.md.)
   const std::vector<ReleasedBond> released = m.bonds.release_block(id.index);
-  report_.block_bonds_handed_over += hand_over_to_particles(engine_, released, r.first, r.particles_created);
+  if (indexed)
+    report_.block_bonds_handed_over += hand_over_to_particles(engine_, released, r.first, r.particles_created);
+  else
+    report_.block_bonds_dropped += released.size();
   const std::vector<rigid::JointId> joints = world_->joints_of(id);
-  for (const rigid::JointId j : joints) {
+  for (const rigid::JointId j : indexed ? joints : std::vector<rigid::JointId>{}) {
     const rigid::FreezeJointDef jd = world_->joint_def(j);
     const bool a_stays = !(jd.a == id);
     const rigid::BlockId other = a_stays ? jd.a : jd.b;
