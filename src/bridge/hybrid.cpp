@@ -215,8 +215,14 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   engine.add_force_source(&m.bonds);
   m.contact_registered = true;
   if (def.mode == ConversionMode::AllAtStart)
-    for (const rigid::BlockId id : world_->blocks())
-      if (!world_->fixed(id)) convert(id);
+    for (const rigid::BlockId id : world_->blocks()) {
+      if (world_->fixed(id)) continue;
+      try {
+        convert(id);
+      } catch (const InputError&) {  // thinner than D: stays rigid, as in hybrid mode
+        ++report_.conversions_refused;
+      }
+    }
 }
 
 HybridSystem::~HybridSystem() {
@@ -440,6 +446,12 @@ const std::vector<Vec3>& HybridSystem::structure_part_force() const {
 const std::vector<Vec3>& HybridSystem::structure_part_moment() const {
   return world_ && impl_->mesh >= 0 ? world_->mesh_load(impl_->mesh).part_moment : impl_->no_parts;
 }
+double HybridSystem::coupling_elastic_energy() const {
+  if (!world_) return 0.0;
+  const auto& ps = engine_.particles();
+  return impl_->contact.elastic_energy(ps, ps.owned(), engine_.def()) + impl_->bonds.elastic_energy(ps, engine_.def());
+}
+
 std::size_t HybridSystem::block_particle_bonds() const { return impl_->bonds.size(); }
 std::uint64_t HybridSystem::block_particle_bonds_broken() const { return impl_->bonds_broken_synced; }
 double HybridSystem::rigid_kinetic_energy() const { return world_ ? world_->kinetic_energy() : 0.0; }

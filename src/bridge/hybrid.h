@@ -159,6 +159,8 @@ class HybridSystem {
   /// Intact block-particle freeze bonds (this rank) and how many broke (all ranks, synced).
   std::size_t block_particle_bonds() const;
   std::uint64_t block_particle_bonds_broken() const;
+  /// Elastic energy in particle-block contacts and block-particle bonds (this rank), J.
+  double coupling_elastic_energy() const;
   /// Kinetic energy of the rigid blocks, J.
   double rigid_kinetic_energy() const;
 
