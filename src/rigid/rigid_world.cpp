@@ -124,6 +124,10 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
                                                       m.solver.get(), m.config.get());
   m.world->setGravity(to_bt(def.gravity));
   m.world->getSolverInfo().m_numIterations = std::max(1, def.solver_iterations);
+  if (def.fixed_friction_directions)
+    m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |
+                                             SOLVER_ENABLE_FRICTION_DIRECTION_CACHING |
+                                             SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION;
 }
 
 RigidWorld::~RigidWorld() {
