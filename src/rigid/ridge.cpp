@@ -648,6 +648,7 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
   wd.quadratic_drag_cd = d.settle.quadratic_drag_cd;
   wd.friction = d.settle.friction;
   wd.restitution = 0.0;
+  wd.fixed_friction_directions = d.settle.fixed_friction_directions;
   wd.allow_sleep = d.settle.allow_sleep;
   wd.sleep_linear_velocity = 0.02;
   wd.sleep_angular_velocity = 0.02;
@@ -774,6 +775,30 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
   res.stats.settle_time = world.time();
   res.stats.settle_steps = steps;
   res.stats.final_kinetic_energy_per_block = ke;
+  // Where the final kinetic energy sits. A Bullet body asleep has its velocities set to
+  // exactly zero (and counts 0 in ke); an awake body never has exactly zero velocity.
+  if (n > 0) {
+    std::vector<double> eb(n);
+    double esail = 0.0, etot = 0.0;
+    std::size_t asleep = 0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const Vec3 v = world.velocity(ids[i]), w = world.angular_velocity(ids[i]);
+      if (v.isZero(0.0) && w.isZero(0.0)) ++asleep;
+      const Vec3 wl = world.orientation(ids[i]).toRotationMatrix().transpose() * w;
+      const Vec3& h = placed[i].h;
+      const double m = world.mass(ids[i]);
+      const Vec3 inertia = m / 3.0 * Vec3(h.y() * h.y() + h.z() * h.z(), h.x() * h.x() + h.z() * h.z(),
+                                          h.x() * h.x() + h.y() * h.y());
+      eb[i] = 0.5 * m * v.squaredNorm() + 0.5 * wl.dot(inertia.cwiseProduct(wl));
+      etot += eb[i];
+      if (placed[i].part != 0) esail += eb[i];
+    }
+    res.stats.final_asleep_blocks = asleep;
+    res.stats.final_kinetic_energy_per_awake_block = asleep < n ? etot / static_cast<double>(n - asleep) : 0.0;
+    res.stats.final_kinetic_energy_sail_fraction = etot > 0.0 ? esail / etot : 0.0;
+    std::nth_element(eb.begin(), eb.begin() + n / 2, eb.end());
+    res.stats.final_kinetic_energy_median = eb[n / 2];
+  }
 
   res.blocks.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
@@ -1058,7 +1083,7 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
                        {"dt", "solver_iterations", "kinetic_energy_per_block", "min_time", "max_time",
                         "friction", "linear_drag", "quadratic_drag_cd", "speed_cap_factor",
                         "allow_sleep", "compaction_friction", "compaction_time", "compaction_solver_iterations",
-                        "damping"});
+                        "damping", "fixed_friction_directions"});
     s.number("dt", d.settle.dt);
     s.integer("solver_iterations", d.settle.solver_iterations);
     s.number("kinetic_energy_per_block", d.settle.kinetic_energy_per_block);
@@ -1072,6 +1097,7 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
     s.number("compaction_friction", d.settle.compaction_friction);
     s.number("compaction_time", d.settle.compaction_time);
     s.number("damping", d.settle.damping);
+    s.boolean("fixed_friction_directions", d.settle.fixed_friction_directions);
     s.integer("compaction_solver_iterations", d.settle.compaction_solver_iterations);
   }
   if (r.has("joints")) {
@@ -1130,7 +1156,8 @@ nlohmann::json ridge_def_to_json(const RidgeDef& d) {
                  {"compaction_friction", d.settle.compaction_friction},
                  {"compaction_time", d.settle.compaction_time},
                  {"compaction_solver_iterations", d.settle.compaction_solver_iterations},
-                 {"damping", d.settle.damping}};
+                 {"damping", d.settle.damping},
+                 {"fixed_friction_directions", d.settle.fixed_friction_directions}};
   j["joints"] = {{"gap", d.joints.gap}, {"min_area", d.joints.min_area}, {"to_ice", d.joints.to_ice}};
   j["profile_bin"] = d.profile_bin;
   j["porosity_grid"] = d.porosity_grid;
@@ -1155,6 +1182,10 @@ nlohmann::json ridge_report(const RidgeResult& r) {
                  {"compaction_end_s", s.compaction_time},
                  {"steps", s.settle_steps},
                  {"kinetic_energy_per_block_J", s.final_kinetic_energy_per_block},
+                 {"kinetic_energy_per_awake_block_J", s.final_kinetic_energy_per_awake_block},
+                 {"asleep_blocks", s.final_asleep_blocks},
+                 {"kinetic_energy_median_J", s.final_kinetic_energy_median},
+                 {"kinetic_energy_sail_fraction", s.final_kinetic_energy_sail_fraction},
                  {"last_second_displacement_m", {{"mean", s.final_mean_displacement}, {"max", s.final_max_displacement}}}};
   j["max_final_overlap_m"] = s.max_final_overlap;
   j["wall_time_s"] = s.wall_time;

@@ -74,6 +74,10 @@ struct RidgeSettleDef {
   /// Settle phase (after compaction): velocity damping rate, 1/s (v /= 1 + damping dt per
   /// step). Numerical: it stops the creep of the pile, it is not water drag.
   double damping = 5.0;
+  /// RigidWorldDef::fixed_friction_directions (both phases): two friction directions per
+  /// contact point, fixed for its lifetime and warm-started, instead of Bullet's one
+  /// direction along the sliding velocity; stops the frictional creep of resting blocks.
+  bool fixed_friction_directions = true;
 };
 
 /// Freeze-joint detection after settling.
@@ -177,6 +181,12 @@ struct RidgeStats {
   std::uint64_t settle_steps = 0;
   bool settled = false;                 ///< KE criterion met before max_time
   double final_kinetic_energy_per_block = 0.0;  ///< J
+  /// Breakdown of the final kinetic energy: blocks asleep (Bullet deactivation: velocity
+  /// exactly 0), mean over the awake blocks, J, median block, J, and the sail's share.
+  std::size_t final_asleep_blocks = 0;
+  double final_kinetic_energy_per_awake_block = 0.0;
+  double final_kinetic_energy_median = 0.0;
+  double final_kinetic_energy_sail_fraction = 0.0;
   /// Block displacement over the last second of settling, mean and max, m.
   double final_mean_displacement = 0.0, final_max_displacement = 0.0;
   double max_final_overlap = 0.0;       ///< m, largest pairwise SAT penetration after settling

@@ -119,6 +119,10 @@ nlohmann::json stats_json(const RidgeStats& s) {
           {"keel_profile_rms_error", s.keel_profile_rms_error}, {"settle_time", s.settle_time}, {"compaction_time", s.compaction_time},
           {"settle_steps", s.settle_steps}, {"settled", s.settled},
           {"final_kinetic_energy_per_block", s.final_kinetic_energy_per_block},
+          {"final_asleep_blocks", s.final_asleep_blocks},
+          {"final_kinetic_energy_per_awake_block", s.final_kinetic_energy_per_awake_block},
+          {"final_kinetic_energy_median", s.final_kinetic_energy_median},
+          {"final_kinetic_energy_sail_fraction", s.final_kinetic_energy_sail_fraction},
           {"final_mean_displacement", s.final_mean_displacement},
           {"final_max_displacement", s.final_max_displacement},
           {"max_final_overlap", s.max_final_overlap}, {"wall_time", s.wall_time}};
@@ -148,6 +152,10 @@ RidgeStats stats_from_json(const nlohmann::json& j) {
   s.max_final_overlap = j.at("max_final_overlap").get<double>();
   s.final_mean_displacement = j.value("final_mean_displacement", 0.0);
   s.final_max_displacement = j.value("final_max_displacement", 0.0);
+  s.final_asleep_blocks = j.value("final_asleep_blocks", std::size_t{0});  // absent in older files
+  s.final_kinetic_energy_per_awake_block = j.value("final_kinetic_energy_per_awake_block", 0.0);
+  s.final_kinetic_energy_median = j.value("final_kinetic_energy_median", 0.0);
+  s.final_kinetic_energy_sail_fraction = j.value("final_kinetic_energy_sail_fraction", 0.0);
   s.wall_time = j.at("wall_time").get<double>();
   return s;
 }

@@ -196,6 +196,10 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   m.world->setGravity(to_bt(def.gravity));
   gCalculateCombinedFrictionCallback = &combined_friction;
   m.world->getSolverInfo().m_numIterations = std::max(1, def.solver_iterations);
+  if (def.fixed_friction_directions)
+    m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |
+                                             SOLVER_ENABLE_FRICTION_DIRECTION_CACHING |
+                                             SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION;
 }
 
 RigidWorld::~RigidWorld() {

@@ -64,6 +64,14 @@ struct RigidWorldDef {
   /// block. btBoxShape keeps the margin inside its half extents, and box–box pairs use
   /// the exact-box algorithm, so the margin never inflates a block.
   double collision_margin = 0.02;
+  /// Friction directions of a contact point. false (Bullet's default): one direction per
+  /// point, along the current relative sliding velocity, recomputed every step. true: two
+  /// fixed directions per point (a basis of the contact plane), kept for the point's
+  /// lifetime, so the friction impulses are warm-started along the same directions from
+  /// step to step (SOLVER_USE_2_FRICTION_DIRECTIONS | SOLVER_ENABLE_FRICTION_DIRECTION_CACHING
+  /// | SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION). With false, static friction in a
+  /// stack lets blocks creep at a few cm/s (docs/ridge.md); ~1/3 more solver rows.
+  bool fixed_friction_directions = false;
 
   // Freeze joints.
   double freeze_bond_strength = 50e3;        ///< tensile strength sigma_t, Pa

@@ -157,5 +157,73 @@ TEST(RigidWorld, SetFrictionChangesSliding) {
   EXPECT_NEAR(d02 / (v0 * v0 / (2 * 0.2 * kG)), 1.0, 0.05);
 }
 
+// Block resting on a fixed 20 deg incline (tan 20 = 0.36 < mu 0.5: it must stay put), out
+// of water; returns how far it moved along the slope over 10 s after 1 s of settling.
+double incline_creep(bool fixed_directions) {
+  RigidWorldDef def;
+  def.water = false;
+  def.dt = 1.0 / 30.0;  // the ridge's step
+  def.friction = 0.5;
+  def.fixed_friction_directions = fixed_directions;
+  RigidWorld w(def);
+  const Quat q(Eigen::AngleAxisd(20.0 * 3.14159265358979323846 / 180.0, Vec3::UnitY()));
+  const Vec3 n = q * Vec3::UnitZ();
+  BlockDef slope;
+  slope.half_extents = Vec3(10.0, 2.0, 0.5);
+  slope.orientation = q;
+  slope.fixed = true;
+  w.add_block(slope);
+  BlockDef b;
+  b.half_extents = Vec3(0.8, 0.6, 0.3);
+  b.orientation = q;
+  b.position = (0.5 + 0.3) * n;
+  const BlockId id = w.add_block(b);
+  w.step(1.0);
+  const Vec3 x0 = w.position(id);
+  w.step(10.0);
+  return (w.position(id) - x0).norm();
+}
+
+TEST(RigidWorld, FixedFrictionDirectionsHoldOnIncline) {
+  const double creep_default = incline_creep(false), creep_fixed = incline_creep(true);
+  std::printf("[ rigid ] creep on a 20 deg incline (mu 0.5) over 10 s: %.3e m (one velocity-"
+              "dependent friction direction), %.3e m (two fixed directions)\n",
+              creep_default, creep_fixed);
+  EXPECT_LT(creep_fixed, 1e-3);
+}
+
+// Sliding with two fixed friction directions: each is clamped to mu N on its own, so the
+// friction force is mu N along a basis direction and up to sqrt(2) mu N diagonally.
+TEST(RigidWorld, FixedFrictionDirectionsSlide) {
+  for (const double angle : {0.0, 45.0}) {
+    RigidWorldDef def;
+    def.water = false;
+    def.dt = 1.0 / 120.0;
+    def.friction = 0.5;
+    def.fixed_friction_directions = true;
+    RigidWorld w(def);
+    BlockDef floor;
+    floor.half_extents = Vec3(20.0, 20.0, 0.5);
+    floor.position = Vec3(0, 0, -0.5);
+    floor.fixed = true;
+    w.add_block(floor);
+    BlockDef b;
+    b.half_extents = Vec3(0.5, 0.5, 0.1);
+    b.position = Vec3(0, 0, 0.1);
+    const BlockId id = w.add_block(b);
+    w.step(0.5);
+    const Vec3 x0 = w.position(id);
+    const double a = angle * 3.14159265358979323846 / 180.0;
+    w.set_velocity(id, 2.0 * Vec3(std::cos(a), std::sin(a), 0.0), Vec3::Zero());
+    w.step(3.0);
+    EXPECT_LT(w.velocity(id).norm(), 1e-3);
+    const double d = (w.position(id) - x0).norm(), d_mu = 2.0 * 2.0 / (2 * 0.5 * kG);
+    std::printf("[ rigid ] fixed friction directions: slide at %.0f deg %.4f m, mu 0.5 gives %.4f m "
+                "(effective mu %.3f)\n", angle, d, d_mu, 0.5 * d_mu / d);
+    EXPECT_GT(d, d_mu / std::sqrt(2.0) * 0.95);
+    EXPECT_LT(d, d_mu * 1.05);
+  }
+}
+
 }  // namespace
 }  // namespace hs::rigid
