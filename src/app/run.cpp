@@ -551,10 +551,13 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
 
   const bool tty = isatty(fileno(progress)) != 0;
   const double setup_s = std::chrono::duration<double>(Clock::now() - t_setup).count();
+  // Counted now: all_at_start conversion has added the blocks' particles and bonds.
+  const auto n_particles = static_cast<long long>(e.global_particle_count());
+  const auto n_bonds = static_cast<long long>(e.global_bond_count());
   std::fprintf(progress,
-               "hybridsim: %s: %zu particles, %zu bonds, %zu walls; dt = %.4g s, %llu steps to t = %g s "
+               "hybridsim: %s: %lld particles, %lld bonds, %zu walls; dt = %.4g s, %llu steps to t = %g s "
                "(setup %.1f s)\n",
-               s.name.c_str(), b.particles, b.bonds, nwalls, e.dt(), static_cast<unsigned long long>(sc.total_steps),
+               s.name.c_str(), n_particles, n_bonds, nwalls, e.dt(), static_cast<unsigned long long>(sc.total_steps),
                s.time.duration, setup_s);
   if (hyb.has_rigid()) {
     const auto& r = hyb.report();
@@ -704,9 +707,10 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const auto& st = e.stats();
   out << "hybridsim: " << s.name << " finished: " << e.step_count() << " steps to t = " << sci(e.time(), 6)
       << " s in " << sci(wall, 4) << " s wall (" << sci(e.step_count() / std::max(wall, 1e-9), 4) << " steps/s, "
-      << sci(static_cast<double>(b.particles) * e.step_count() / std::max(wall, 1e-9), 3)
+      << sci(static_cast<double>(n_particles) * e.step_count() / std::max(wall, 1e-9), 3)
       << " particle-steps/s)\n";
-  out << "  particles " << b.particles << ", bonds " << b.bonds << ", broken " << st.bonds_broken << " ("
+  out << "  particles " << n_particles << " at the start, " << e.global_particle_count() << " at the end; bonds "
+      << n_bonds << ", broken " << st.bonds_broken << " ("
       << st.bonds_broken_tension << " tension, " << st.bonds_broken_shear << " shear)\n";
   for (std::size_t w = 0; w < nwalls; ++w)
     out << "  peak force on wall '" << s.walls[w].name << "': " << sci(peak[w], 4) << " N at t = "

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# The 8 m keel against the cone (scenes/ridge_keel_8m_cone.json), hybrid and full-particle.
+#   bash scripts/ridge_cone.sh [DURATION_S]    (default: the scene's 6 s; both runs use it)
+# Builds, makes the ridge file if missing (`hybridsim ridge`, ~1-4 min), runs the scene in hybrid
+# mode and with conversion = all_at_start (the full-particle reference: ~4x the particles, expect
+# ~10x the wall time), and plots both into out/. The run reports print wall time, peak particle
+# count and conversion statistics side by side.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/build.sh hybridsim
+mkdir -p out
+RIDGE=scenes/ridge_keel_8m_ridge.h5
+[ -f "$RIDGE" ] || ./build/hybridsim ridge scenes/ridge_keel_8m.json -o "$RIDGE"
+extra=()
+[ $# -ge 1 ] && extra=(--set "time.duration=$1")
+for mode in hybrid all_at_start; do
+  ./build/hybridsim run scenes/ridge_keel_8m_cone.json "${extra[@]}" --set "blocks.conversion=$mode" \
+    -o "out/ridge_keel_8m_cone_${mode}.h5" | tee "out/ridge_keel_8m_cone_${mode}.txt"
+  /usr/bin/python3 tools/plot_run.py "out/ridge_keel_8m_cone_${mode}.h5" -o out
+done
