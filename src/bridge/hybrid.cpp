@@ -168,6 +168,16 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   }
   const double h_wanted = def.rigid_dt > 0.0 ? def.rigid_dt : report_.rigid_dt_limit;
   const auto k = static_cast<std::uint64_t>(std::max(1.0, std::floor(h_wanted / dt + 1e-9)));
+  // Block-particle freeze bonds (from ice joints now, or from block joints at conversions) with
+  // no damping are negatively damped by the lagging block reaction when k > 1 (docs/bridge.md,
+  // "Block-particle freeze bonds", Limits): refused.
+  const auto& fb = engine.def().bond[static_cast<int>(bonded::BondKind::Freeze)];
+  if (k > 1 && (!ice_joints.empty() || !joints.empty()) && fb.kn > 0.0 && fb.gamma_n == 0.0 &&
+      fb.gamma_s == 0.0)
+    throw InputError("/bonds/damping_ratio",
+                     "block-particle freeze bonds without damping are unstable with a rigid step of " +
+                         std::to_string(k) + " DEM steps; set bonds.damping_ratio > 0 (e.g. 0.1) or "
+                         "blocks.rigid_dt to the DEM step");
   report_.steps_per_rigid_step = k;
   report_.rigid_dt = static_cast<double>(k) * dt;
 

@@ -86,6 +86,19 @@ TEST(HybridStep, StabilityRuleAndRefusal) {
     std::printf("[ hybrid ] refused: %s\n", err.what());
   }
   d.rigid_dt = 0.0;
+  {  // undamped freeze bonds with k > 1 would be negatively damped (docs/bridge.md): refused
+    Engine e2(engine_def(false));
+    add_spectator(e2);
+    e2.set_dt(1e-4);
+    e2.mutable_def().bond[1] = e2.def().bond[0];  // stiff, zero damping (engine_def: zeta 0)
+    std::vector<BlockInit> two = {block(Vec3(1.0, 0.75, 0.3), Vec3::Zero()), block(Vec3(1.0, 0.75, 0.3), Vec3(2.01, 0, 0))};
+    try {
+      HybridSystem h2(e2, d, two, {{0, 1, Vec3(1.005, 0, 0), Vec3::UnitX(), 0.5}});
+      ADD_FAILURE() << "undamped freeze bonds with a multi-step rigid step were accepted";
+    } catch (const InputError& err) {
+      EXPECT_NE(std::string(err.what()).find("/bonds/damping_ratio"), std::string::npos) << err.what();
+    }
+  }
   HybridSystem h(e, d, blocks);
   const auto& r = h.report();
   EXPECT_LE(r.rigid_dt, r.rigid_dt_limit);
