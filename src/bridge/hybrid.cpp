@@ -54,19 +54,37 @@ double block_particle_overlap(const bonded::ParticleStore& ps, const Vec3& half,
   return worst;
 }
 
-double clearing_shift(const bonded::Engine& engine, const Vec3& half, const Vec3& c, const Quat& q) {
+Vec3 clearing_shift(const bonded::Engine& engine, const Vec3& half, const Vec3& c, const Quat& q) {
   // A block that starts overlapping particles would be thrown off by the contact springs
-  // (energy from nowhere). It is moved vertically away from the water line (down below
-  // it, up above it) until clear, 1 mm to spare; a few passes cover particles uncovered by
-  // the move.
-  const double dir = c.z() < engine.def().water.level ? -1.0 : 1.0;
-  double shift = 0.0;
-  for (int pass = 0; pass < 8; ++pass) {
-    const double o = block_particle_overlap(engine.particles(), half, c + Vec3(0, 0, shift), q);
-    if (o <= 0.0) break;
-    shift += dir * (o + 1e-3);
+  // (energy from nowhere). It is moved clear along the axis direction that needs the
+  // shortest move: down, or sideways, for a block centred below the water level (never up
+  // into the ice), up or sideways above it; each direction in a few passes (a move can
+  // uncover other particles), 1 mm to spare. A block touching the side of a thicker band
+  // (the consolidated layer's edge) moves sideways instead of being pushed into the blocks
+  // under it.
+  if (block_particle_overlap(engine.particles(), half, c, q) <= 0.0) return Vec3::Zero();
+  const bool below = c.z() < engine.def().water.level;
+  const Vec3 dirs[5] = {below ? Vec3(0, 0, -1) : Vec3(0, 0, 1), Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 1, 0),
+                        Vec3(0, -1, 0)};
+  Vec3 best = Vec3::Zero();
+  double best_len = INFINITY;
+  for (const Vec3& dir : dirs) {
+    double len = 0.0;
+    bool clear = false;
+    for (int pass = 0; pass < 8 && len < best_len; ++pass) {
+      const double o = block_particle_overlap(engine.particles(), half, c + len * dir, q);
+      if (o <= 0.0) {
+        clear = true;
+        break;
+      }
+      len += o + 1e-3;
+    }
+    if (clear && len < best_len) {
+      best_len = len;
+      best = len * dir;
+    }
   }
-  return shift;
+  return best;
 }
 
 double max_rigid_step(const RigidStepInputs& in) {
@@ -183,6 +201,11 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
 
   rigid::RigidWorldDef wd = def.world;
   wd.dt = report_.rigid_dt;
+  // Bullet's position correction pushes at erp x error / dt: keep the push of a 60 Hz world
+  // (erp 0.2 at 1/60 s) at the much smaller rigid step, unless the caller set erp.
+  const double erp_scaled = std::min(0.2, 0.2 * wd.dt * 60.0);
+  if (!(wd.contact_erp > 0.0)) wd.contact_erp = erp_scaled;
+  if (!(wd.joint_erp > 0.0)) wd.joint_erp = erp_scaled;
   world_ = std::make_unique<rigid::RigidWorld>(wd);
   if (def.has_structure) m.mesh = world_->add_kinematic_mesh(def.structure);
   std::vector<rigid::BlockId> ids;
@@ -190,11 +213,11 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   for (const auto& b : blocks) {
     rigid::BlockDef bd = b.def;
     if (!bd.fixed) {
-      const double shift = clearing_shift(engine, bd.half_extents, bd.position, bd.orientation);
-      if (shift != 0.0) {
-        bd.position.z() += shift;
+      const Vec3 shift = clearing_shift(engine, bd.half_extents, bd.position, bd.orientation);
+      if (!shift.isZero(0.0)) {
+        bd.position += shift;
         ++report_.blocks_moved_clear;
-        report_.max_clearing_shift = std::max(report_.max_clearing_shift, std::abs(shift));
+        report_.max_clearing_shift = std::max(report_.max_clearing_shift, shift.norm());
       }
     }
     ids.push_back(world_->add_block(bd));

@@ -55,10 +55,11 @@ double max_rigid_step(const RigidStepInputs& in);
 /// Deepest overlap (m) of an oriented box with the owned particles (0 when clear).
 double block_particle_overlap(const bonded::ParticleStore& ps, const Vec3& half_extents, const Vec3& centre,
                               const Quat& orientation);
-/// Vertical shift (m) that clears a block from the engine's particles: downwards for a block
-/// centred below the water level, upwards otherwise, until no overlap remains (+1 mm); 0 if clear.
-double clearing_shift(const bonded::Engine& engine, const Vec3& half_extents, const Vec3& centre,
-                      const Quat& orientation);
+/// Shortest axis-aligned move (m) that clears a block from the engine's particles: down or
+/// sideways for a block centred below the water level, up or sideways above it (+1 mm); zero
+/// if already clear.
+Vec3 clearing_shift(const bonded::Engine& engine, const Vec3& half_extents, const Vec3& centre,
+                    const Quat& orientation);
 
 /// Outcome counters of a hybrid run (printed at the end and stored in the run file).
 struct HybridReport {

@@ -196,6 +196,8 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   m.world->setGravity(to_bt(def.gravity));
   gCalculateCombinedFrictionCallback = &combined_friction;
   m.world->getSolverInfo().m_numIterations = std::max(1, def.solver_iterations);
+  if (def.contact_erp > 0.0) m.world->getSolverInfo().m_erp2 = def.contact_erp;
+  if (def.joint_erp > 0.0) m.world->getSolverInfo().m_erp = def.joint_erp;
   if (def.fixed_friction_directions)
     m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |
                                              SOLVER_ENABLE_FRICTION_DIRECTION_CACHING |
