@@ -4,6 +4,7 @@
 // conversions, the block's rigid state, the particles by global id, the structure-free momentum.
 #include "bridge/hybrid.h"
 #include "bonded/hcp_lattice.h"
+#include "mesh/pier.h"
 #include "mpi_fixtures.h"
 
 #include <gtest/gtest.h>
@@ -131,6 +132,83 @@ TEST(ParallelHybrid, RigidBlockOnASlabAcrossTheCutMatchesSerial) {
 
 TEST(ParallelHybrid, BlockConvertingOnContactMatchesSerial) {
   compare(ConversionMode::Hybrid, "block converts on contact");
+}
+
+// The cone test of tests/bridge/test_conversion_consistency.cpp, distributed: a block released
+// 5 cm above the 52 deg cone's slope; the structure impulse over 0.6 s (particles' mesh load,
+// summed over ranks, + the blocks' load from the replicated rigid world).
+Vec3 cone_impulse(ConversionMode mode, bool distribute, std::uint64_t* conversions) {
+  bonded::EngineDef ed = slab_def();
+  ed.contact.zeta_n = ed.contact.zeta_t = bonded::damping_ratio_from_restitution(0.05);
+  bonded::Engine e(ed);
+  bonded::ParticleInit p;  // a far-away particle: the engine has something to step
+  p.x = Vec3(1000, 1000, 1000);
+  p.radius = 0.5 * kD;
+  p.mass = kRhoI * bonded::hcp_cell_volume(kD);
+  e.add_particle(p);
+  mesh::PierParams pp;
+  bonded::MeshWallDef md;
+  md.mesh = mesh::make_pier(pp);
+  md.friction = 0.1;
+  const int wall = e.add_mesh_wall(md);
+  HybridDef d;
+  d.mode = mode;
+  d.world.water = false;
+  d.world.friction = 0.3;
+  d.ice.diameter = kD;
+  d.block_density = kRhoI;
+  d.block_friction = 0.3;
+  d.stress_time_constant = 0.0;
+  d.flexural_strength = 2e3;
+  d.has_structure = true;
+  d.structure.vertices = md.mesh.vertices;
+  d.structure.triangles = md.mesh.triangles;
+  d.structure.triangle_part = md.mesh.triangle_part;
+  d.structure.part_count = md.mesh.part_names.size();
+  d.structure.friction = 0.1;
+  d.region.radius = 20.0;
+  d.region.z_min = -20.0;
+  d.region.z_max = 20.0;
+  const double ang = pp.cone_angle_deg * kPi / 180.0, z0 = 1.0, r0 = mesh::pier_radius_at(pp, z0);
+  const Vec3 n(std::sin(ang), 0.0, std::cos(ang));
+  BlockInit b;
+  b.def.half_extents = Vec3(0.6, 0.4, 0.2);
+  b.def.orientation = Quat(Eigen::AngleAxisd(ang, Vec3::UnitY()));
+  b.def.position = Vec3(r0, 0.0, z0) + 0.25 * n;
+  b.def.density = kRhoI;
+  HybridSystem h(e, d, {b});
+  if (distribute) {
+    bonded::ParallelDef pd;
+    pd.grid = {world().size(), 1, 1};
+    e.distribute(world(), pd);
+  }
+  Vec3 J = Vec3::Zero();
+  const auto steps = static_cast<std::uint64_t>(std::llround(0.6 / e.dt()));
+  for (std::uint64_t k = 0; k < steps; ++k) {
+    h.step();
+    J += (e.mesh_wall_load(wall).force + h.structure_force()) * e.dt();
+  }
+  *conversions = h.report().conversions;
+  return J;
+}
+
+TEST(ParallelHybrid, ConeImpulseAgreesAcrossModesAndWithSerial) {
+  const ConversionMode modes[3] = {ConversionMode::Never, ConversionMode::AllAtStart, ConversionMode::Hybrid};
+  const char* names[3] = {"rigid", "at start", "on contact"};
+  Vec3 Jd[3];
+  for (int m = 0; m < 3; ++m) {
+    std::uint64_t cs = 0, cd = 0;
+    const Vec3 Js = cone_impulse(modes[m], false, &cs);
+    Jd[m] = cone_impulse(modes[m], true, &cd);
+    EXPECT_EQ(cs, cd);
+    EXPECT_EQ(cd, m == 0 ? 0u : 1u);
+    const double rel = (Jd[m] - Js).norm() / Js.norm();
+    if (world().rank() == 0)
+      std::printf("[ mpi hybrid ] cone impulse, %s, %d ranks: (%.2f, %.2f, %.2f) N s, %.2e from serial\n", names[m],
+                  world().size(), Jd[m].x(), Jd[m].y(), Jd[m].z(), rel);
+    EXPECT_LT(rel, 1e-9);
+  }
+  for (int m = 1; m < 3; ++m) EXPECT_LT((Jd[m] - Jd[0]).norm() / Jd[0].norm(), 0.10);
 }
 
 }  // namespace
