@@ -211,5 +211,88 @@ TEST(ParallelHybrid, ConeImpulseAgreesAcrossModesAndWithSerial) {
   for (int m = 1; m < 3; ++m) EXPECT_LT((Jd[m] - Jd[0]).norm() / Jd[0].norm(), 0.10);
 }
 
+// The pile test of tests/bridge/test_conversion_consistency.cpp, distributed: three blocks
+// stacked crosswise on a fixed floor, settled 1 s as rigid blocks, the middle one converted
+// (its particles spread over the ranks: the floor's centre is the cut), 0.3 s more. Energy
+// injected (largest rise of the total over its value before the conversion) < 1 % of m g h,
+// and the particles equal to a serial copy.
+struct PileRun {
+  std::unique_ptr<bonded::Engine> e;
+  std::unique_ptr<HybridSystem> h;
+};
+
+PileRun make_pile(bool distribute) {
+  PileRun r;
+  bonded::EngineDef ed = slab_def();
+  ed.contact.zeta_n = ed.contact.zeta_t = bonded::damping_ratio_from_restitution(0.05);
+  r.e = std::make_unique<bonded::Engine>(ed);
+  bonded::ParticleInit p;
+  p.x = Vec3(1000, 1000, 1000);
+  p.radius = 0.5 * kD;
+  p.mass = kRhoI * bonded::hcp_cell_volume(kD);
+  r.e->add_particle(p);
+  HybridDef d;
+  d.mode = ConversionMode::Never;
+  d.world.water = false;
+  d.world.friction = 0.3;
+  d.world.linear_drag = 0.0;
+  d.ice.diameter = kD;
+  d.block_density = kRhoI;
+  d.block_friction = 0.3;
+  std::vector<BlockInit> blocks(4);
+  blocks[0].def.half_extents = Vec3(3, 3, 0.5);
+  blocks[0].def.position = Vec3(0, 0, -0.5);
+  blocks[0].def.fixed = true;
+  for (int k = 1; k <= 3; ++k) {
+    blocks[k].def.half_extents = Vec3(0.5, 0.3, 0.2);
+    blocks[k].def.position = Vec3(0.02 * k, 0.0, 0.4 * k - 0.2 + 0.002 * k);
+    blocks[k].def.orientation = Quat(Eigen::AngleAxisd(k == 2 ? kPi / 2 : 0.0, Vec3::UnitZ()));
+    blocks[k].def.density = kRhoI;
+  }
+  r.h = std::make_unique<HybridSystem>(*r.e, d, blocks);
+  if (distribute) {
+    bonded::ParallelDef pd;
+    pd.grid = {world().size(), 1, 1};
+    r.e->distribute(world(), pd);
+  }
+  return r;
+}
+
+double pile_energy(const PileRun& r) {
+  const rigid::RigidWorld& w = *r.h->world();
+  double E = r.e->energy().total() + r.e->comm().sum(r.h->coupling_elastic_energy()) + w.kinetic_energy();
+  for (const rigid::BlockId id : w.blocks())
+    if (!w.fixed(id)) E += w.mass(id) * kG * w.position(id).z();
+  return E;
+}
+
+TEST(ParallelHybrid, BlockConvertedInAPileInjectsNoEnergyAndMatchesSerial) {
+  PileRun ser = make_pile(false), dis = make_pile(true);
+  const auto steps = [&](double t) { return static_cast<std::uint64_t>(std::llround(t / ser.e->dt())); };
+  for (std::uint64_t k = 0, n = steps(1.0); k < n; ++k) {
+    ser.h->step();
+    dis.h->step();
+  }
+  const rigid::BlockId mid = dis.h->world()->blocks().at(2);
+  const double mgh = dis.h->world()->mass(mid) * kG * dis.h->world()->position(mid).z();
+  const double E0 = pile_energy(dis);
+  ser.h->convert(ser.h->world()->blocks().at(2));
+  const auto rep = dis.h->convert(mid);
+  double Emax = pile_energy(dis);
+  for (std::uint64_t k = 0, n = steps(0.3); k < n; ++k) {
+    ser.h->step();
+    dis.h->step();
+    Emax = std::max(Emax, pile_energy(dis));
+  }
+  const double dx = max_position_difference(*dis.e, *ser.e);
+  if (world().rank() == 0)
+    std::printf("[ mpi hybrid ] pile, %d ranks: middle block -> %zu particles, energy injected %.2e J (m g h %.1f J), "
+                "max |x - x_serial| %.2e m\n",
+                world().size(), rep.particles_created, Emax - E0, mgh, dx);
+  EXPECT_GT(rep.particles_created, 0u);
+  EXPECT_LT(Emax - E0, 0.01 * mgh);
+  EXPECT_LT(dx, 1e-9);
+}
+
 }  // namespace
 }  // namespace hs::test
