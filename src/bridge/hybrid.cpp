@@ -56,16 +56,12 @@ double block_particle_overlap(const bonded::ParticleStore& ps, const Vec3& half,
 
 Vec3 clearing_shift(const bonded::Engine& engine, const Vec3& half, const Vec3& c, const Quat& q) {
   // A block that starts overlapping particles would be thrown off by the contact springs
-  // (energy from nowhere). It is moved clear along the axis direction that needs the
-  // shortest move: down, or sideways, for a block centred below the water level (never up
-  // into the ice), up or sideways above it; each direction in a few passes (a move can
-  // uncover other particles), 1 mm to spare. A block touching the side of a thicker band
-  // (the consolidated layer's edge) moves sideways instead of being pushed into the blocks
-  // under it.
+  // (energy from nowhere). It is moved clear along the axis direction (+-x, +-y, +-z) that
+  // needs the shortest move, each direction in a few passes (a move can uncover other
+  // particles), 1 mm to spare: a block under the ice moves down, one touching the side of a
+  // thicker band moves sideways, one under a particle above it moves down.
   if (block_particle_overlap(engine.particles(), half, c, q) <= 0.0) return Vec3::Zero();
-  const bool below = c.z() < engine.def().water.level;
-  const Vec3 dirs[5] = {below ? Vec3(0, 0, -1) : Vec3(0, 0, 1), Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 1, 0),
-                        Vec3(0, -1, 0)};
+  const Vec3 dirs[6] = {Vec3(0, 0, -1), Vec3(0, 0, 1), Vec3(1, 0, 0), Vec3(-1, 0, 0), Vec3(0, 1, 0), Vec3(0, -1, 0)};
   Vec3 best = Vec3::Zero();
   double best_len = INFINITY;
   for (const Vec3& dir : dirs) {

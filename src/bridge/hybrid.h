@@ -55,9 +55,8 @@ double max_rigid_step(const RigidStepInputs& in);
 /// Deepest overlap (m) of an oriented box with the owned particles (0 when clear).
 double block_particle_overlap(const bonded::ParticleStore& ps, const Vec3& half_extents, const Vec3& centre,
                               const Quat& orientation);
-/// Shortest axis-aligned move (m) that clears a block from the engine's particles: down or
-/// sideways for a block centred below the water level, up or sideways above it (+1 mm); zero
-/// if already clear.
+/// Shortest axis-aligned move (m, along +-x, +-y or +-z) that clears a block from the engine's
+/// particles (+1 mm); zero if already clear.
 Vec3 clearing_shift(const bonded::Engine& engine, const Vec3& half_extents, const Vec3& centre,
                     const Quat& orientation);
 
