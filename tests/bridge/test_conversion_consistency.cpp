@@ -3,6 +3,7 @@
 // converted inside a settled pile injects < 1 % of m g h; a beam loaded in three-point bending
 // converts under load and breaks at the load an all-particle beam breaks at, within 10 %.
 #include "bridge/hybrid.h"
+#include "hybrid_fixtures.h"
 #include "common/error.h"
 #include "mesh/pier.h"
 
@@ -20,44 +21,7 @@ using hs::bridge::HybridSystem;
 
 namespace {
 
-constexpr double kRhoI = 920.0, kD = 0.2, kE = 1e8, kG = 9.81;
-
-// Particle ice as in the scenes, E = 1e8 Pa (contact overlaps under a block's weight stay small),
-// bond damping 0.3. `restitution`: particle contacts (Bullet's are plastic, e = 0).
-EngineDef ice_def(double restitution) {
-  EngineDef d;
-  d.gravity = Vec3(0, 0, -kG);
-  d.youngs_modulus = kE;
-  d.density = kRhoI;
-  d.contact.kn = d.contact.kt = kPi * kE * kD / 12.0;
-  d.contact.zeta_n = d.contact.zeta_t = damping_ratio_from_restitution(restitution);
-  d.contact.mu = 0.3;
-  const double m = kRhoI * hcp_cell_volume(kD), I = 0.4 * m * 0.25 * kD * kD;
-  d.bond[0] = ParallelBondParams::from_stiffness(d.contact.kn, d.contact.kn, 0.5 * kD, INFINITY, INFINITY, 0.3,
-                                                 0.5 * m, 0.5 * I);
-  d.bond[1] = d.bond[0];
-  return d;
-}
-
-HybridDef dry_hybrid(ConversionMode mode) {
-  HybridDef d;
-  d.mode = mode;
-  d.world.water = false;
-  d.world.friction = 0.3;
-  d.ice.diameter = kD;
-  d.block_density = kRhoI;
-  d.block_friction = 0.3;
-  d.stress_time_constant = 0.0;
-  return d;
-}
-
-void add_spectator(Engine& e) {
-  ParticleInit p;
-  p.x = Vec3(1000, 1000, 1000);
-  p.radius = 0.5 * kD;
-  p.mass = kRhoI * hcp_cell_volume(kD);
-  e.add_particle(p);
-}
+using namespace hs::test::hybrid;
 
 struct DropResult {
   Vec3 impulse = Vec3::Zero();  // on the structure, N s
@@ -71,33 +35,10 @@ struct DropResult {
 DropResult drop_on_cone(ConversionMode mode) {
   Engine e(ice_def(0.05));
   add_spectator(e);
-  mesh::PierParams pp;
-  MeshWallDef md;
-  md.mesh = mesh::make_pier(pp);
-  md.friction = 0.1;
-  const int wall = e.add_mesh_wall(md);
-  e.set_dt(0.1 * kD * std::sqrt(kRhoI / kE));
   HybridDef d = dry_hybrid(mode);
-  d.has_structure = true;
-  d.structure.vertices = md.mesh.vertices;
-  d.structure.triangles = md.mesh.triangles;
-  d.structure.triangle_part = md.mesh.triangle_part;
-  d.structure.part_count = md.mesh.part_names.size();
-  d.structure.friction = 0.1;
-  d.region.shape = bridge::ConversionRegion::Shape::Cylinder;
-  d.region.radius = 20.0;
-  d.region.z_min = -20.0;
-  d.region.z_max = 20.0;
-  d.flexural_strength = 2e3;  // low: converts as soon as the cone pushes on it
-  // On the +x side of the cone, half way up the slope: tilted by the cone angle about y.
-  const double ang = pp.cone_angle_deg * kPi / 180.0;
-  const double z0 = 1.0, r0 = mesh::pier_radius_at(pp, z0);
-  const Vec3 n(std::sin(ang), 0.0, std::cos(ang));  // outward normal of the slope
-  BlockInit b;
-  b.def.half_extents = Vec3(0.6, 0.4, 0.2);
-  b.def.orientation = Quat(Eigen::AngleAxisd(ang, Vec3::UnitY()));
-  b.def.position = Vec3(r0, 0.0, z0) + (0.2 + 0.05) * n;
-  b.def.density = kRhoI;
+  const int wall = add_cone(e, d);
+  e.set_dt(ice_dt());
+  const BlockInit b = block_above_cone();
   HybridSystem h(e, d, {b});
   DropResult out;
   const auto n_steps = static_cast<std::uint64_t>(std::llround(0.6 / e.dt()));
@@ -133,16 +74,6 @@ TEST(ConversionConsistency, BlockDroppedOnConeGivesTheSameImpulse) {
   EXPECT_LT(d_contact, 0.10);
 }
 
-namespace {
-double total_energy(const Engine& e, const HybridSystem& h) {
-  double E = e.energy().total() + h.coupling_elastic_energy();
-  const rigid::RigidWorld& w = *h.world();
-  E += w.kinetic_energy();
-  for (const rigid::BlockId id : w.blocks())
-    if (!w.fixed(id)) E += w.mass(id) * kG * w.position(id).z();
-  return E;
-}
-}  // namespace
 
 TEST(ConversionConsistency, BlockConvertedInASettledPileInjectsLessThanOnePercentOfMgh) {
   // A fixed floor and three 1.0 x 0.6 x 0.4 m blocks stacked crosswise; settle 1.5 s as rigid
@@ -151,19 +82,10 @@ TEST(ConversionConsistency, BlockConvertedInASettledPileInjectsLessThanOnePercen
   // value just before the conversion; h = height of the block's centre above the floor.
   Engine e(ice_def(0.05));
   add_spectator(e);
-  e.set_dt(0.1 * kD * std::sqrt(kRhoI / kE));
+  e.set_dt(ice_dt());
   HybridDef d = dry_hybrid(ConversionMode::Never);
   d.world.linear_drag = 0.0;
-  std::vector<BlockInit> blocks(4);
-  blocks[0].def.half_extents = Vec3(3, 3, 0.5);
-  blocks[0].def.position = Vec3(0, 0, -0.5);
-  blocks[0].def.fixed = true;
-  for (int k = 1; k <= 3; ++k) {
-    blocks[k].def.half_extents = Vec3(0.5, 0.3, 0.2);
-    blocks[k].def.position = Vec3(0.02 * k, 0.0, 0.4 * k - 0.2 + 0.002 * k);
-    blocks[k].def.orientation = Quat(Eigen::AngleAxisd(k == 2 ? kPi / 2 : 0.0, Vec3::UnitZ()));
-    blocks[k].def.density = kRhoI;
-  }
+  const std::vector<BlockInit> blocks = pile_blocks();
   HybridSystem h(e, d, blocks);
   const auto steps = [&](double t) { return static_cast<std::uint64_t>(std::llround(t / e.dt())); };
   for (std::uint64_t k = 0, n = steps(1.5); k < n; ++k) h.step();

@@ -2,9 +2,9 @@
 // particle slab that lies across the rank boundary, once staying rigid and once converting on
 // contact. Every rank also runs a serial copy; the distributed run must match it: the same
 // conversions, the block's rigid state, the particles by global id, the structure-free momentum.
-#include "bridge/hybrid.h"
+#include "../bridge/hybrid_fixtures.h"
 #include "bonded/hcp_lattice.h"
-#include "mesh/pier.h"
+#include "bridge/hybrid.h"
 #include "mpi_fixtures.h"
 
 #include <gtest/gtest.h>
@@ -20,21 +20,12 @@ using bridge::ConversionMode;
 using bridge::HybridDef;
 using bridge::HybridSystem;
 
-constexpr double kRhoI = 920.0, kD = 0.2, kE = 1e8, kG = 9.81;
+using namespace hs::test::hybrid;
 
-bonded::EngineDef slab_def() {
-  bonded::EngineDef d;
-  d.gravity = Vec3(0, 0, -kG);
-  d.youngs_modulus = kE;
-  d.density = kRhoI;
-  d.contact.kn = d.contact.kt = kPi * kE * kD / 12.0;
-  d.contact.zeta_n = d.contact.zeta_t = bonded::damping_ratio_from_restitution(0.1);
-  d.contact.mu = 0.3;
-  const double m = kRhoI * bonded::hcp_cell_volume(kD), I = 0.4 * m * 0.25 * kD * kD;
-  d.bond[0] = bonded::ParallelBondParams::from_stiffness(d.contact.kn, d.contact.kn, 0.5 * kD, INFINITY, INFINITY,
-                                                         0.3, 0.5 * m, 0.5 * I);
-  d.bond[1] = d.bond[0];
-  d.dt = 0.1 * kD * std::sqrt(kRhoI / kE);
+// The shared ice (hybrid_fixtures.h) with contact restitution `e` and the Eq. 2 step.
+bonded::EngineDef slab_def(double e = 0.1) {
+  bonded::EngineDef d = hybrid::ice_def(e);
+  d.dt = ice_dt();
   return d;
 }
 
@@ -65,14 +56,7 @@ Setup make(ConversionMode mode, bool distribute) {
     z_bottom = std::min(z_bottom, e.particles().x[i].z() - 0.5 * kD);
     z_top = std::max(z_top, e.particles().x[i].z() + 0.5 * kD);
   }
-  HybridDef d;
-  d.mode = mode;
-  d.world.water = false;
-  d.world.friction = 0.3;
-  d.ice.diameter = kD;
-  d.block_density = kRhoI;
-  d.block_friction = 0.3;
-  d.stress_time_constant = 0.0;
+  HybridDef d = dry_hybrid(mode);
   d.flexural_strength = 2e3;  // converts as soon as the slab pushes back
   d.region.shape = bridge::ConversionRegion::Shape::Box;
   d.region.half_extents = Vec3(10, 10, 10);
@@ -138,44 +122,11 @@ TEST(ParallelHybrid, BlockConvertingOnContactMatchesSerial) {
 // 5 cm above the 52 deg cone's slope; the structure impulse over 0.6 s (particles' mesh load,
 // summed over ranks, + the blocks' load from the replicated rigid world).
 Vec3 cone_impulse(ConversionMode mode, bool distribute, std::uint64_t* conversions) {
-  bonded::EngineDef ed = slab_def();
-  ed.contact.zeta_n = ed.contact.zeta_t = bonded::damping_ratio_from_restitution(0.05);
-  bonded::Engine e(ed);
-  bonded::ParticleInit p;  // a far-away particle: the engine has something to step
-  p.x = Vec3(1000, 1000, 1000);
-  p.radius = 0.5 * kD;
-  p.mass = kRhoI * bonded::hcp_cell_volume(kD);
-  e.add_particle(p);
-  mesh::PierParams pp;
-  bonded::MeshWallDef md;
-  md.mesh = mesh::make_pier(pp);
-  md.friction = 0.1;
-  const int wall = e.add_mesh_wall(md);
-  HybridDef d;
-  d.mode = mode;
-  d.world.water = false;
-  d.world.friction = 0.3;
-  d.ice.diameter = kD;
-  d.block_density = kRhoI;
-  d.block_friction = 0.3;
-  d.stress_time_constant = 0.0;
-  d.flexural_strength = 2e3;
-  d.has_structure = true;
-  d.structure.vertices = md.mesh.vertices;
-  d.structure.triangles = md.mesh.triangles;
-  d.structure.triangle_part = md.mesh.triangle_part;
-  d.structure.part_count = md.mesh.part_names.size();
-  d.structure.friction = 0.1;
-  d.region.radius = 20.0;
-  d.region.z_min = -20.0;
-  d.region.z_max = 20.0;
-  const double ang = pp.cone_angle_deg * kPi / 180.0, z0 = 1.0, r0 = mesh::pier_radius_at(pp, z0);
-  const Vec3 n(std::sin(ang), 0.0, std::cos(ang));
-  BlockInit b;
-  b.def.half_extents = Vec3(0.6, 0.4, 0.2);
-  b.def.orientation = Quat(Eigen::AngleAxisd(ang, Vec3::UnitY()));
-  b.def.position = Vec3(r0, 0.0, z0) + 0.25 * n;
-  b.def.density = kRhoI;
+  bonded::Engine e(slab_def(0.05));
+  add_spectator(e);
+  HybridDef d = dry_hybrid(mode);
+  const int wall = add_cone(e, d);
+  const BlockInit b = block_above_cone();
   HybridSystem h(e, d, {b});
   if (distribute) {
     bonded::ParallelDef pd;
@@ -223,32 +174,11 @@ struct PileRun {
 
 PileRun make_pile(bool distribute) {
   PileRun r;
-  bonded::EngineDef ed = slab_def();
-  ed.contact.zeta_n = ed.contact.zeta_t = bonded::damping_ratio_from_restitution(0.05);
-  r.e = std::make_unique<bonded::Engine>(ed);
-  bonded::ParticleInit p;
-  p.x = Vec3(1000, 1000, 1000);
-  p.radius = 0.5 * kD;
-  p.mass = kRhoI * bonded::hcp_cell_volume(kD);
-  r.e->add_particle(p);
-  HybridDef d;
-  d.mode = ConversionMode::Never;
-  d.world.water = false;
-  d.world.friction = 0.3;
+  r.e = std::make_unique<bonded::Engine>(slab_def(0.05));
+  add_spectator(*r.e);
+  HybridDef d = dry_hybrid(ConversionMode::Never);
   d.world.linear_drag = 0.0;
-  d.ice.diameter = kD;
-  d.block_density = kRhoI;
-  d.block_friction = 0.3;
-  std::vector<BlockInit> blocks(4);
-  blocks[0].def.half_extents = Vec3(3, 3, 0.5);
-  blocks[0].def.position = Vec3(0, 0, -0.5);
-  blocks[0].def.fixed = true;
-  for (int k = 1; k <= 3; ++k) {
-    blocks[k].def.half_extents = Vec3(0.5, 0.3, 0.2);
-    blocks[k].def.position = Vec3(0.02 * k, 0.0, 0.4 * k - 0.2 + 0.002 * k);
-    blocks[k].def.orientation = Quat(Eigen::AngleAxisd(k == 2 ? kPi / 2 : 0.0, Vec3::UnitZ()));
-    blocks[k].def.density = kRhoI;
-  }
+  const std::vector<BlockInit> blocks = pile_blocks();
   r.h = std::make_unique<HybridSystem>(*r.e, d, blocks);
   if (distribute) {
     bonded::ParallelDef pd;
@@ -258,13 +188,7 @@ PileRun make_pile(bool distribute) {
   return r;
 }
 
-double pile_energy(const PileRun& r) {
-  const rigid::RigidWorld& w = *r.h->world();
-  double E = r.e->energy().total() + r.e->comm().sum(r.h->coupling_elastic_energy()) + w.kinetic_energy();
-  for (const rigid::BlockId id : w.blocks())
-    if (!w.fixed(id)) E += w.mass(id) * kG * w.position(id).z();
-  return E;
-}
+double pile_energy(const PileRun& r) { return total_energy(*r.e, *r.h); }
 
 TEST(ParallelHybrid, BlockConvertedInAPileInjectsNoEnergyAndMatchesSerial) {
   PileRun ser = make_pile(false), dis = make_pile(true);
