@@ -222,6 +222,7 @@ struct AnalysisOut {
   double max_pile = 0.0;      ///< m
   bool has_hybrid = false;
   bridge::HybridReport hybrid;
+  std::uint64_t block_bonds_broken = 0;  ///< block-particle freeze bonds broken
   std::string conversion;
 };
 
@@ -254,25 +255,33 @@ void write_analysis(const std::string& path, const AnalysisOut& a) {
     H5 h(H5Gcreate2(g.id, "hybrid", H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "create /analysis/hybrid");
     const auto& r = a.hybrid;
     h5_attr(h.id, "conversion", a.conversion);
-    h5_attr(h.id, "conversions", static_cast<double>(r.conversions));
-    h5_attr(h.id, "particles_created", static_cast<double>(r.particles_created));
-    h5_attr(h.id, "bonds_created", static_cast<double>(r.bonds_created));
-    h5_attr(h.id, "sites_dropped", static_cast<double>(r.sites_dropped));
-    h5_attr(h.id, "conversions_freeze", static_cast<double>(r.conversions_freeze));
-    h5_attr(h.id, "conversions_flexure", static_cast<double>(r.conversions_flexure));
-    h5_attr(h.id, "conversions_refused", static_cast<double>(r.conversions_refused));
-    h5_attr(h.id, "max_utilisation", r.max_utilisation);
-    h5_attr(h.id, "blocks_moved_clear", static_cast<double>(r.blocks_moved_clear));
-    h5_attr(h.id, "peak_particles", static_cast<double>(r.peak_particles));
-    h5_attr(h.id, "blocks_initial", static_cast<double>(r.blocks_initial));
-    h5_attr(h.id, "blocks_final", static_cast<double>(r.blocks_now));
-    h5_attr(h.id, "rigid_steps", static_cast<double>(r.rigid_steps));
-    h5_attr(h.id, "rigid_dt", r.rigid_dt);
-    h5_attr(h.id, "rigid_dt_limit", r.rigid_dt_limit);
-    h5_attr(h.id, "seconds_rigid", r.seconds_rigid);
-    h5_attr(h.id, "seconds_bonded", r.seconds_bonded);
-    h5_attr(h.id, "seconds_bridge", r.seconds_bridge);
-    h5_attr(h.id, "conversion_kinetic_energy_change", r.kinetic_energy_change);
+    const std::pair<const char*, double> figures[] = {
+        {"conversions", static_cast<double>(r.conversions)},
+        {"particles_created", static_cast<double>(r.particles_created)},
+        {"bonds_created", static_cast<double>(r.bonds_created)},
+        {"sites_dropped", static_cast<double>(r.sites_dropped)},
+        {"conversions_freeze", static_cast<double>(r.conversions_freeze)},
+        {"conversions_flexure", static_cast<double>(r.conversions_flexure)},
+        {"conversions_refused", static_cast<double>(r.conversions_refused)},
+        {"max_utilisation", r.max_utilisation},
+        {"blocks_moved_clear", static_cast<double>(r.blocks_moved_clear)},
+        {"peak_particles", static_cast<double>(r.peak_particles)},
+        {"blocks_initial", static_cast<double>(r.blocks_initial)},
+        {"blocks_final", static_cast<double>(r.blocks_now)},
+        {"rigid_steps", static_cast<double>(r.rigid_steps)},
+        {"rigid_dt", r.rigid_dt},
+        {"rigid_dt_limit", r.rigid_dt_limit},
+        {"seconds_rigid", r.seconds_rigid},
+        {"seconds_bonded", r.seconds_bonded},
+        {"seconds_bridge", r.seconds_bridge},
+        {"conversion_kinetic_energy_change", r.kinetic_energy_change},
+        {"freeze_bonds_to_ice", static_cast<double>(r.ice_bonds_created)},
+        {"freeze_bonds_from_joints", static_cast<double>(r.joints_to_bonds)},
+        {"freeze_bonds_handed_over", static_cast<double>(r.block_bonds_handed_over)},
+        {"freeze_bonds_dropped_mpi", static_cast<double>(r.block_bonds_dropped)},
+        {"freeze_bonds_broken", static_cast<double>(a.block_bonds_broken)},
+    };
+    for (const auto& [name, value] : figures) h5_attr(h.id, name, value);
     h5_attr(h.id, "description", std::string("rigid/particle hybrid: conversions, particles created, peak particle "
                                              "count, wall time per part (s, rank 0), rigid step (s)"));
   }
@@ -681,6 +690,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   an.max_pile = max_pile;
   an.has_hybrid = hyb.has_rigid();
   an.hybrid = hyb.report();
+  an.block_bonds_broken = hyb.block_particle_bonds_broken();
   an.conversion = bridge::to_string(hsetup.def.mode);
   const double h_iso = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
   an.L_c = characteristic_length(s.material.youngs_modulus, h_iso, s.water.density, s.gravity.norm(),
