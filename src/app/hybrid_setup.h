@@ -16,7 +16,6 @@ struct HybridSetup {
   std::vector<bridge::JointInit> joints;   ///< ridge joints between kept blocks
   std::vector<bridge::IceJointInit> ice_joints;  ///< ridge joints from kept blocks to the ice sheet
   std::size_t ridge_blocks_in_file = 0;     ///< before keep_x / keep_y / keep_sail
-  std::size_t ice_joints_skipped = 0;       ///< (unused: ridge joints to the ice become block-particle bonds)
   std::vector<std::string> warnings;
 };
 

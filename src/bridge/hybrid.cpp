@@ -329,15 +329,14 @@ void HybridSystem::apply_policy() {
     std::memcpy(static_cast<void*>(&pf), all.data() + o, sizeof pf);
     particle_loads[pf.block].push_back({pf.point, pf.force});
   }
-  auto k_of = [&](rigid::BlockId id) {
-    return static_cast<std::size_t>(std::find(m.ids.begin(), m.ids.end(), id) - m.ids.begin());
-  };
   std::vector<rigid::BlockId> to_convert;
   std::vector<bool> by_freeze;
   std::vector<FreezeJointSample> joints;
   std::vector<PointLoad> loads;
   const bool decide_here = comm.rank() == 0;
-  for (const rigid::BlockId id : decide_here ? world_->blocks() : std::vector<rigid::BlockId>{}) {
+  // m.ids is the world's block list (slot order); k indexes it, the contact blocks and the loads.
+  for (std::size_t k = 0; decide_here && k < m.ids.size(); ++k) {
+    const rigid::BlockId id = m.ids[k];
     if (world_->fixed(id)) continue;  // fixed blocks are walls and floors, not ice
     if (id.index < m.unconvertible.size() && m.unconvertible[id.index]) continue;
     const Vec3 x = world_->position(id), half = world_->half_extents(id);
@@ -349,7 +348,7 @@ void HybridSystem::apply_policy() {
     }
     loads.clear();
     for (const auto& c : world_->contact_forces(id)) loads.push_back({c.point, c.force});
-    for (const auto& pf : particle_loads[k_of(id)]) loads.push_back(pf);
+    for (const auto& pf : particle_loads[k]) loads.push_back(pf);
     const FreezeBondEstimate fe = freeze_bond_estimate(joints, strength);
     const FlexureEstimate fl =
         flexure_estimate(BlockBox{half, x, world_->orientation(id)}, loads, m.def.flexural_strength);
