@@ -88,9 +88,18 @@ std::size_t hcp_equalize_layers(std::vector<Vec3>& centres, const Pose& pose, do
   for (const auto& [k, v] : layers) n_min = std::min(n_min, v.size());
   const std::size_t removed = centres.size() - n_min * layers.size();
   centres.clear();
+  // Within a layer two sites are >= D/2 apart in x (different rows) or share a row's x and are
+  // >= D apart in y. Compare with a tolerance of D/8, not the raw coordinates: sites of one row
+  // differ in x only by the rounding of the rotation, and ordered by that noise the sort (so
+  // which sites are trimmed, and the new particles' ids) would change with a 1e-16 change of the
+  // pose, e.g. between a serial and an MPI run. (On such clustered values the tolerant order is
+  // a strict weak order.)
+  const double tol = 0.125 * D;
   for (auto& [k, v] : layers) {
-    std::sort(v.begin(), v.end(), [](const Vec3& a, const Vec3& b) {
-      return a.x() != b.x() ? a.x() < b.x() : a.y() < b.y();
+    std::sort(v.begin(), v.end(), [tol](const Vec3& a, const Vec3& b) {
+      if (a.x() < b.x() - tol) return true;
+      if (b.x() < a.x() - tol) return false;
+      return a.y() < b.y() - tol;
     });
     std::size_t lo = 0, hi = v.size();
     for (std::size_t q = 0; hi - lo > n_min; ++q) (q % 2 ? lo++ : hi--);

@@ -77,6 +77,35 @@ TEST(HcpLattice, PrismFillsOnlyThePolygon) {
   EXPECT_NEAR(static_cast<double>(x.size()), expected, 0.25 * expected);  // coarse: 36 cells per layer
 }
 
+TEST(HcpLattice, EqualizedLayersKeepTheirOrderUnderARoundingChangeOfThePose) {
+  // The converter's ids follow the order hcp_equalize_layers leaves the sites in. A pose that
+  // differs by rounding (a serial and an MPI run of the same block) must give the same sites in
+  // the same order, and trim the same ones.
+  const double D = 0.2;
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-1.0, 1.0);
+  int mismatched = 0, trimmed = 0;
+  for (int trial = 0; trial < 50; ++trial) {
+    const Quat q = Quat(u(rng), u(rng), u(rng), u(rng)).normalized();
+    const Pose a{Vec3(u(rng), u(rng), u(rng)), q};
+    const Pose b{a.position + Vec3(1e-16, -2e-16, 1e-16),
+                 (q * Quat(Eigen::AngleAxisd(3e-16, Vec3(u(rng), u(rng), u(rng)).normalized()))).normalized()};
+    const Vec3 half(0.5 + 0.2 * std::abs(u(rng)), 0.3 + 0.2 * std::abs(u(rng)), 0.2 + 0.1 * std::abs(u(rng)));
+    std::vector<Vec3> xa = hcp_fill_box(half, a, D), xb = hcp_fill_box(half, b, D);
+    ASSERT_EQ(xa.size(), xb.size());
+    trimmed += hcp_equalize_layers(xa, a, D) > 0;
+    hcp_equalize_layers(xb, b, D);
+    ASSERT_EQ(xa.size(), xb.size());
+    for (std::size_t k = 0; k < xa.size(); ++k)
+      if ((xa[k] - xb[k]).norm() > 1e-12) {
+        ++mismatched;
+        break;
+      }
+  }
+  EXPECT_GT(trimmed, 10) << "the boxes must exercise trimming";
+  EXPECT_EQ(mismatched, 0);
+}
+
 TEST(NeighbourList, FindsEveryContactAndRebuildsOnlyAfterHalfSkin) {
   test::Ice ice;
   EngineDef d = test::no_field_def(ice);
