@@ -278,7 +278,6 @@ void write_analysis(const std::string& path, const AnalysisOut& a) {
         {"freeze_bonds_to_ice", static_cast<double>(r.ice_bonds_created)},
         {"freeze_bonds_from_joints", static_cast<double>(r.joints_to_bonds)},
         {"freeze_bonds_handed_over", static_cast<double>(r.block_bonds_handed_over)},
-        {"freeze_bonds_dropped_mpi", static_cast<double>(r.block_bonds_dropped)},
         {"freeze_bonds_broken", static_cast<double>(a.block_bonds_broken)},
     };
     for (const auto& [name, value] : figures) h5_attr(h.id, name, value);

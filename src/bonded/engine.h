@@ -169,6 +169,15 @@ struct LatticeInsert {
   std::vector<ParticleInit> sites;
   std::vector<std::array<std::uint32_t, 2>> bonds;  ///< pairs of site indices, bonded stress free
   BondKind kind = BondKind::Lattice;
+  /// A bond from a particle already in the engine to a site (stress free at insertion, like
+  /// `bonds`; not made when its site is dropped): e.g. a converted block's freeze bonds to the
+  /// particles it was frozen to.
+  struct Attach {
+    GlobalId particle = 0;
+    std::uint32_t site = 0;
+    BondKind kind = BondKind::Freeze;
+  };
+  std::vector<Attach> attach;
   /// Drop the sites that would start in contact overlap with existing particles
   /// (Engine::overlapping_sites), and their bonds.
   bool drop_overlapping = true;
@@ -184,6 +193,7 @@ struct LatticeInsertReport {
   std::vector<GlobalId> gid;  ///< per site: its global id, or kDropped
   GlobalId first_gid = 0;     ///< the kept sites have first_gid, first_gid + 1, ... in site order
   std::size_t particles_created = 0, particles_dropped = 0, bonds_created = 0;
+  std::size_t attached = 0;   ///< bonds made from LatticeInsert::attach
 };
 
 /// Pairs (i, j), i < j, ascending, of the spheres (x, radius) whose centres lie within
@@ -231,8 +241,12 @@ class Engine {
   /// add_particle for each kept site, then add_bond in ascending id order. Under MPI each rank adds
   /// the kept sites in its box and the bonds whose lower-id site it owns, then makes new ghosts and
   /// binds every new bond by id (a partner out of reach throws SimulationError on every rank) and
-  /// rebuilds the neighbour lists. Throws std::invalid_argument (on every rank, nothing added) for
-  /// a site without positive mass and radius, or a bond out of range, to itself or listed twice.
+  /// rebuilds the neighbour lists. `attach` bonds (existing particle -> site) live, like every
+  /// bond, on the owner of the lower id, which is always the existing particle: its owner makes
+  /// the bond from its own state and the site's. Throws std::invalid_argument (on every rank,
+  /// nothing added) for a site without positive mass and radius, a bond out of range, to itself
+  /// or listed twice, or an attach naming a particle the engine does not own (on any rank) or a
+  /// site out of range.
   LatticeInsertReport insert_lattice(const LatticeInsert& lat);
   int add_wall(const PlaneWall& w);
   /// Adds a moving triangle-mesh wall; throws hs::InputError if the mesh is invalid.
@@ -343,7 +357,8 @@ class Engine {
     std::uint32_t si, sj;    ///< their sites
   };
   /// The MPI half of insert_lattice (engine_insert.cpp).
-  void insert_distributed(const LatticeInsert& lat, const std::vector<GlobalId>& gid, const std::vector<NewBond>& bonds);
+  void insert_distributed(const LatticeInsert& lat, const std::vector<GlobalId>& gid, const std::vector<NewBond>& bonds,
+                          const std::vector<LatticeInsert::Attach>& attach);
   void migrate(const std::vector<int>& dest, bool any_rank);
   void drop_owned(const std::vector<char>& keep);
   void make_ghosts();

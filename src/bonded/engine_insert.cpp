@@ -14,7 +14,9 @@
 //   * bonds: a bond lives on the owner of its lower id (as everywhere, engine_parallel.cpp); that
 //     rank makes it from the site list, which every rank holds whole, so its reference frame needs
 //     no partner; the partner is bound by id at the full exchange that follows, exactly as after a
-//     migration, and a partner out of reach stops every rank (never a lost bond).
+//     migration, and a partner out of reach stops every rank (never a lost bond);
+//   * attached bonds (existing particle -> new site): the existing particle has the lower id, so
+//     its owner makes the bond from its own state and the site's, bound the same way.
 #include "engine.h"
 
 #include <algorithm>
@@ -92,6 +94,25 @@ LatticeInsertReport Engine::insert_lattice(const LatticeInsert& lat) {
   std::sort(canon.begin(), canon.end());
   if (std::adjacent_find(canon.begin(), canon.end()) != canon.end())
     throw std::invalid_argument("insert_lattice: a bond is listed twice");
+  // Attached bonds: a site in range, each (particle, site) once, and every particle owned by
+  // exactly one rank (counted over the ranks, so every rank refuses alike).
+  std::vector<std::pair<GlobalId, std::uint32_t>> att;
+  att.reserve(lat.attach.size());
+  double owned_here = 0.0;
+  for (const auto& a : lat.attach) {
+    if (a.site >= ns)
+      throw std::invalid_argument("insert_lattice: attach to site " + std::to_string(a.site) + " out of range");
+    att.emplace_back(a.particle, a.site);
+    const std::uint32_t i = ps_.local(a.particle);
+    owned_here += i != ParticleStore::kNone && i < ps_.owned() ? 1.0 : 0.0;
+  }
+  std::sort(att.begin(), att.end());
+  if (std::adjacent_find(att.begin(), att.end()) != att.end())
+    throw std::invalid_argument("insert_lattice: an attach bond is listed twice");
+  if (parallel() && !lat.attach.empty()) owned_here = comm_->sum(owned_here);
+  if (owned_here != static_cast<double>(lat.attach.size()))
+    throw std::invalid_argument("insert_lattice: " + std::to_string(lat.attach.size() - static_cast<std::size_t>(owned_here)) +
+                                " attach bond(s) name a particle the engine does not hold");
 
   std::vector<char> drop(ns, 0);
   if (lat.drop_overlapping) {
@@ -120,20 +141,25 @@ LatticeInsertReport Engine::insert_lattice(const LatticeInsert& lat) {
   for (const auto& [a, b] : canon)
     if (!drop[a] && !drop[b]) bonds.push_back({rep.gid[a], rep.gid[b], a, b});
   rep.bonds_created = bonds.size();
+  std::vector<LatticeInsert::Attach> attach;
+  for (const auto& a : lat.attach)
+    if (!drop[a.site]) attach.push_back(a);
+  rep.attached = attach.size();
 
   if (!parallel()) {
     for (std::size_t k = 0; k < ns; ++k)
       if (!drop[k]) add_owned(lat.sites[k], rep.gid[k]);
     for (const NewBond& b : bonds) add_bond(b.gi, b.gj, lat.kind);
+    for (const auto& a : attach) add_bond(a.particle, rep.gid[a.site], a.kind);
   } else {
-    insert_distributed(lat, rep.gid, bonds);
+    insert_distributed(lat, rep.gid, bonds, attach);
   }
   ps_.advance_gid(next);
   return rep;
 }
 
 void Engine::insert_distributed(const LatticeInsert& lat, const std::vector<GlobalId>& gid,
-                                const std::vector<NewBond>& bonds) {
+                                const std::vector<NewBond>& bonds, const std::vector<LatticeInsert::Attach>& attach) {
   const int me = comm_->rank();
   ++pstats_.exchanges;
   drop_ghosts();  // (owned particles can only be added while there are no ghosts)
@@ -156,6 +182,24 @@ void Engine::insert_distributed(const LatticeInsert& lat, const std::vector<Glob
     bd.kind = lat.kind;
     // The store keeps normalised orientations: the same reference frame as add_bond makes.
     bd.ref = BondRef::at_rest(a.x, a.q.normalized(), a.radius, b.x, b.q.normalized(), b.radius);
+    bonds_.push_back(bd);
+  }
+  // Attached bonds: the existing particle has the lower id (new ids come after every id in use),
+  // so its owner holds the bond, made from its own state and the site's. (No ghosts now: local
+  // means owned.) make_ghosts() reduces the longest bond over the ranks.
+  for (const auto& at : attach) {
+    const std::uint32_t i = ps_.local(at.particle);
+    if (i == ParticleStore::kNone) continue;
+    const ParticleInit& b = lat.sites[at.site];
+    if (!(at.particle < gid[at.site])) throw std::logic_error("insert_lattice: an attached particle's id follows a new one");
+    max_bond_length_ = std::max(max_bond_length_, (b.x - ps_.x[i]).norm());
+    Bond bd;
+    bd.gi = at.particle;
+    bd.gj = gid[at.site];
+    bd.i = i;
+    bd.j = ParticleStore::kNone;
+    bd.kind = at.kind;
+    bd.ref = BondRef::at_rest(ps_.x[i], ps_.q[i], ps_.radius[i], b.x, b.q.normalized(), b.radius);
     bonds_.push_back(bd);
   }
   redistribute();  // new ghosts, every new bond bound to both ends, bond counts

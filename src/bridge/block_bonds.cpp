@@ -4,7 +4,6 @@
 #include <cmath>
 #include <limits>
 #include <stdexcept>
-#include <unordered_set>
 
 namespace hs::bridge {
 
@@ -36,22 +35,26 @@ void BlockParticleBonds::set_block(std::uint32_t block, const BlockBody& body) {
 
 void BlockParticleBonds::add_bond_at(const ParticleStore& ps, std::size_t index, std::uint32_t block,
                                      const Vec3& surface_point, const Vec3& normal) {
-  if (block >= blocks_.size()) throw std::invalid_argument("BlockParticleBonds: unknown block slot");
   if (index >= ps.size()) throw std::invalid_argument("BlockParticleBonds: unknown particle");
+  add_bond_to(ps.gid[index], ps.x[index], ps.q[index], ps.radius[index], block, surface_point, normal);
+  cached_index_.back() = static_cast<std::uint32_t>(index);
+}
+
+void BlockParticleBonds::add_bond_to(GlobalId gid, const Vec3& x, const Quat& q, double r, std::uint32_t block,
+                                     const Vec3& surface_point, const Vec3& normal) {
+  if (block >= blocks_.size()) throw std::invalid_argument("BlockParticleBonds: unknown block slot");
   const BlockBody& B = blocks_[block];
-  const double r = ps.radius[index];
   BlockParticleBond b;
-  b.gid = ps.gid[index];
+  b.gid = gid;
   b.block = block;
   b.anchor = B.orientation.conjugate() * (surface_point - r * normal - B.position);
   // The virtual particle's centre exactly as add_forces() will compute it, so the bond starts
   // stress free up to rounding.
   const Vec3 xv = B.position + B.orientation * b.anchor;
-  if (!((xv - ps.x[index]).norm() > 0.25 * r))
-    throw std::invalid_argument("BlockParticleBonds: particle centre inside the block");
-  b.ref = BondRef::at_rest(ps.x[index], ps.q[index], r, xv, B.orientation, r);
+  if (!((xv - x).norm() > 0.25 * r)) throw std::invalid_argument("BlockParticleBonds: particle centre inside the block");
+  b.ref = BondRef::at_rest(x, q, r, xv, B.orientation, r);
   bonds_.push_back(b);
-  cached_index_.push_back(static_cast<std::uint32_t>(index));
+  cached_index_.push_back(ParticleStore::kNone);  // (looked up by id at the first evaluation)
   ++n_intact_;
 }
 
@@ -107,8 +110,16 @@ std::size_t BlockParticleBonds::bond_touching(const ParticleStore& ps, std::uint
   return made;
 }
 
-std::vector<ReleasedBond> BlockParticleBonds::release_block(std::uint32_t block) {
+std::vector<ReleasedBond> BlockParticleBonds::bonds_of(std::uint32_t block) const {
   std::vector<ReleasedBond> out;
+  for (const BlockParticleBond& b : bonds_)
+    if (b.block == block && !b.broken)
+      out.push_back({b.gid, blocks_[block].position + blocks_[block].orientation * b.anchor});
+  return out;
+}
+
+std::vector<ReleasedBond> BlockParticleBonds::release_block(std::uint32_t block) {
+  std::vector<ReleasedBond> out = bonds_of(block);
   std::size_t w = 0;
   for (std::size_t k = 0; k < bonds_.size(); ++k) {
     const BlockParticleBond& b = bonds_[k];
@@ -117,10 +128,7 @@ std::vector<ReleasedBond> BlockParticleBonds::release_block(std::uint32_t block)
       bonds_[w++] = b;
       continue;
     }
-    if (b.broken) continue;
-    const BlockBody& B = blocks_[block];
-    out.push_back({b.gid, B.position + B.orientation * b.anchor});
-    --n_intact_;
+    if (!b.broken) --n_intact_;
   }
   bonds_.resize(w);
   cached_index_.resize(w);
@@ -224,59 +232,32 @@ double BlockParticleBonds::elastic_energy(const ParticleStore& ps, const bonded:
   return e;
 }
 
-std::size_t hand_over_to_particles(bonded::Engine& engine, const std::vector<ReleasedBond>& released,
-                                   std::size_t first, std::size_t count) {
-  const ParticleStore& ps = engine.particles();
-  const std::size_t last = std::min(first + count, ps.owned());
-  if (first >= last) return 0;
-  std::unordered_set<bonded::GidPair, bonded::GidPairHash> made_pairs;
-  std::size_t made = 0;
-  for (const ReleasedBond& rb : released) {
-    std::size_t best = SIZE_MAX;
-    double best_d2 = std::numeric_limits<double>::infinity();
-    for (std::size_t j = first; j < last; ++j) {
-      const double d2 = (ps.x[j] - rb.anchor).squaredNorm();
-      if (d2 < best_d2 && ps.gid[j] != rb.gid && !made_pairs.count(bonded::GidPair::of(rb.gid, ps.gid[j]))) {
-        best_d2 = d2;
-        best = j;
-      }
-    }
-    if (best == SIZE_MAX) continue;
-    const GlobalId partner = ps.gid[best];
-    made_pairs.insert(bonded::GidPair::of(rb.gid, partner));
-    engine.add_bond(rb.gid, partner, BondKind::Freeze);
-    ++made;
-  }
-  return made;
-}
-
-std::size_t bond_joint_to_particles(BlockParticleBonds& bonds, const ParticleStore& ps, std::uint32_t block,
-                                    const Vec3& anchor, const Vec3& normal, double area, std::size_t first,
-                                    std::size_t count) {
+std::size_t bond_joint_to_particles(BlockParticleBonds& bonds, std::uint32_t block, const Vec3& anchor,
+                                    const Vec3& normal, double area, const ConversionReport& converted) {
   if (!(area > 0.0) || !(normal.norm() > 0.0))
     throw std::invalid_argument("bond_joint_to_particles: area and normal must be > 0");
   const Vec3 n = normal.normalized();
-  const double R2 = area / kPi;
+  const double R2 = area / kPi, r = converted.radius;
   const BlockBody& B = bonds.block(block);
-  const std::size_t last = std::min(first + count, ps.owned());
+  const std::vector<Vec3>& x = converted.sites;
   // Candidates: new particles on the converted side whose foot lies in the patch and on the
   // remaining block's box (grown by a radius); then the layer nearest the face.
   std::vector<std::size_t> cand;
   double s_min = std::numeric_limits<double>::infinity();
-  for (std::size_t i = first; i < last; ++i) {
-    const Vec3 rel = ps.x[i] - anchor;
+  for (std::size_t k = 0; k < x.size(); ++k) {
+    const Vec3 rel = x[k] - anchor;
     const double s = rel.dot(n);
     if (!(s > 0.0) || (rel - s * n).squaredNorm() > R2) continue;
-    if (!on_box(B, ps.x[i] - s * n, ps.radius[i])) continue;
-    cand.push_back(i);
+    if (!on_box(B, x[k] - s * n, r)) continue;
+    cand.push_back(k);
     s_min = std::min(s_min, s);
   }
   std::size_t made = 0;
-  for (std::size_t i : cand) {
-    const double s = (ps.x[i] - anchor).dot(n);
+  for (std::size_t k : cand) {
+    const double s = (x[k] - anchor).dot(n);
     // Half the HCP layer spacing sqrt(2/3) D: only the first layer.
-    if (s > s_min + 0.5 * std::sqrt(2.0 / 3.0) * 2.0 * ps.radius[i]) continue;
-    bonds.add_bond_at(ps, i, block, ps.x[i] - s * n, n);
+    if (s > s_min + 0.5 * std::sqrt(2.0 / 3.0) * 2.0 * r) continue;
+    bonds.add_bond_to(converted.first_gid + k, x[k], converted.orientation, r, block, x[k] - s * n, n);
     ++made;
   }
   return made;

@@ -28,10 +28,12 @@
 // by global id every evaluation, so reordering and migration are harmless), so its impulse is
 // that rank's share and the caller sums impulses over ranks (ImpulseCoupler). A break is seen
 // first by the owner; sync_broken() (collective, at each rigid step) removes broken bonds from
-// every rank's copy. Making bonds after distribute() is for serial runs (like convert_block).
+// every rank's copy. Bonds made after distribute() must be made alike on every rank, from
+// replicated data (add_bond_to, bond_joint_to_particles with a conversion's site list).
 #pragma once
 
 #include "bonded/engine.h"
+#include "bridge/converter.h"
 #include "parallel/comm.h"
 
 #include <cstddef>
@@ -98,8 +100,17 @@ class BlockParticleBonds final : public bonded::ForceSource {
   /// surface. Returns the number of bonds made.
   std::size_t bond_touching(const bonded::ParticleStore& ps, std::uint32_t block, double rel_tol = 0.1);
 
-  /// Conversion hand-over, step 1: removes block `block`'s bonds and returns each one's particle
-  /// and world anchor (virtual particle centre at the block's current pose), in bond order.
+  /// Bonds particle `gid`, whose state (centre, orientation, radius) is given rather than read
+  /// from a store, e.g. one just inserted on another rank; otherwise as add_bond_at. Under MPI
+  /// every rank must make the same calls (the list is replicated).
+  void add_bond_to(GlobalId gid, const Vec3& x, const Quat& q, double radius, std::uint32_t block,
+                   const Vec3& surface_point, const Vec3& normal);
+
+  /// Block `block`'s intact bonds as release_block() would return them, removing nothing.
+  std::vector<ReleasedBond> bonds_of(std::uint32_t block) const;
+  /// Conversion hand-over: removes block `block`'s bonds and returns each one's particle and
+  /// world anchor (virtual particle centre at the block's current pose), in bond order; they
+  /// become convert_block attachments (freeze bonds to the new particles).
   std::vector<ReleasedBond> release_block(std::uint32_t block);
 
   // ---- bonded::ForceSource ----
@@ -132,21 +143,13 @@ class BlockParticleBonds final : public bonded::ForceSource {
   BlockBondStats stats_;
 };
 
-/// Conversion hand-over, step 2 (block converted into particles [first, first + count) of
-/// `engine`): each released bond becomes an Engine freeze bond (BondKind::Freeze) between its
-/// particle and the new particle nearest its anchor (stress free at the current state); a new
-/// particle already taken by the same old particle is skipped for the next nearest. Returns the
-/// number of bonds made (= released.size() unless the range is empty).
-std::size_t hand_over_to_particles(bonded::Engine& engine, const std::vector<ReleasedBond>& released,
-                                   std::size_t first, std::size_t count);
-
 /// A block frozen to another rigid block by a freeze joint (anchor, normal from the remaining
-/// block towards the converted one, area) has converted into particles [first, first + count):
-/// bonds the remaining block `block` to the layer of those particles nearest the joint face
-/// inside the joint's patch (within half an HCP layer spacing, 0.41 D, of the nearest one).
-/// Returns the number of bonds made.
-std::size_t bond_joint_to_particles(BlockParticleBonds& bonds, const bonded::ParticleStore& ps,
-                                    std::uint32_t block, const Vec3& anchor, const Vec3& normal,
-                                    double area, std::size_t first, std::size_t count);
+/// block towards the converted one, area) has converted (`converted`: convert_block's report,
+/// whose new-particle list every rank holds alike): bonds the remaining block `block` to the
+/// layer of those particles nearest the joint face inside the joint's patch (within half an HCP
+/// layer spacing, 0.41 D, of the nearest one). Under MPI every rank makes the same bonds, so the
+/// replicated list stays replicated. Returns the number of bonds made.
+std::size_t bond_joint_to_particles(BlockParticleBonds& bonds, std::uint32_t block, const Vec3& anchor,
+                                    const Vec3& normal, double area, const ConversionReport& converted);
 
 }  // namespace hs::bridge

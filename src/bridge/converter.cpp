@@ -5,7 +5,9 @@
 #include <cmath>
 #include <algorithm>
 #include <cstdint>
+#include <limits>
 #include <map>
+#include <set>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -30,7 +32,7 @@ Mat3 box_inertia_world(const Vec3& he, const Quat& orientation, double mass) {
 }
 
 ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& mat,
-                               const SiteBlocked& blocked) {
+                               const SiteBlocked& blocked, const std::vector<Attachment>& attach) {
   using namespace hs::bonded;
   // ---- input checks ----
   // Under MPI every rank runs all of this on the same block (the rigid world is replicated)
@@ -169,12 +171,34 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   }
   lat.bonds = touching_pairs(kept, std::vector<double>(kept.size(), r));
   lat.kind = BondKind::Lattice;
+  // Attachments: each to the nearest kept site not yet bonded to the same particle (first in
+  // site order on a tie); the kept sites are the same on every rank, so is the choice.
+  {
+    std::set<std::pair<GlobalId, std::uint32_t>> taken;
+    for (const Attachment& a : attach) {
+      std::uint32_t best = 0;
+      double best_d2 = std::numeric_limits<double>::infinity();
+      for (std::uint32_t k = 0; k < kept.size(); ++k) {
+        const double d2 = (kept[k] - a.point).squaredNorm();
+        if (d2 < best_d2 && !taken.count({a.particle, k})) {
+          best_d2 = d2;
+          best = k;
+        }
+      }
+      if (!std::isfinite(best_d2)) continue;  // (every site already bonded to this particle)
+      taken.insert({a.particle, best});
+      lat.attach.push_back({a.particle, best, BondKind::Freeze});
+    }
+  }
   lat.drop_overlapping = false;  // done above: the masses and velocities depend on what is kept
   const std::size_t n_old = ps.size();
   if (!distributed) ps.reserve(n_old + kept.size());
   const LatticeInsertReport ins = engine.insert_lattice(lat);
   rep.first_gid = ins.first_gid;
   rep.bonds_created = ins.bonds_created;
+  rep.bonds_attached = ins.attached;
+  rep.orientation = pose.orientation.normalized();  // as the store keeps it
+  rep.radius = r;
 
   // ---- what the engine now holds, measured on the particles (summed over the ranks) ----
   Vec3 P = Vec3::Zero(), L = Vec3::Zero();
@@ -207,6 +231,7 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   rep.linear_momentum_after = P;
   rep.angular_momentum_after = L;
   rep.kinetic_energy_after = ke;
+  rep.sites = std::move(kept);
   return rep;
 }
 

@@ -20,7 +20,9 @@
 //      about any point equals the block's (sum m_i r_i = 0). Kinetic energy is not conserved in
 //      general (the lattice's inertia differs from the box's); the change is reported.
 //   6. Insertion: the kept sites and their lattice bonds (every pair D apart, BondKind::Lattice,
-//      stress free) go into the engine through Engine::insert_lattice.
+//      stress free) go into the engine through Engine::insert_lattice, with a freeze bond from
+//      each attachment's particle to its nearest kept site (chosen from the replicated site
+//      list, so every rank chooses alike).
 // Global ids come from the engine's counter: same engine state and inputs, same ids.
 //
 // Under MPI (docs/parallel.md, "Conversion under MPI") every rank calls convert_block with the
@@ -35,6 +37,7 @@
 
 #include <cstddef>
 #include <functional>
+#include <vector>
 
 namespace hs::bridge {
 
@@ -57,6 +60,14 @@ struct IceMaterial {
   bonded::MaterialIndex material = 0;
 };
 
+/// An existing particle to freeze-bond (BondKind::Freeze, stress free) to the new particle
+/// nearest `point`, e.g. a block-particle bond that held the converted block, `point` its block
+/// end; a new particle already bonded to the same particle is passed over for the next nearest.
+struct Attachment {
+  GlobalId particle = 0;
+  Vec3 point = Vec3::Zero();  ///< world, m
+};
+
 struct ConversionReport {
   static constexpr std::size_t kNoIndex = ~std::size_t{0};
   /// Serial: index of the first new particle in the store, the new ones being
@@ -66,8 +77,14 @@ struct ConversionReport {
   std::size_t particles_created = 0;  ///< over all ranks
   std::size_t particles_dropped = 0;  ///< lattice sites dropped for overlapping existing particles
   std::size_t sites_trimmed = 0;      ///< lattice sites trimmed to give every layer the same count
-  std::size_t bonds_created = 0;
+  std::size_t bonds_created = 0;     ///< lattice bonds among the new particles
+  std::size_t bonds_attached = 0;    ///< freeze bonds made from the attachments
   GlobalId first_gid = 0;     ///< ids are first_gid, first_gid + 1, ... in lattice-site order
+  /// The new particles as inserted, on every rank alike (whichever rank owns each): centre of
+  /// the particle with id first_gid + k, and the orientation, radius and material of all.
+  std::vector<Vec3> sites;
+  Quat orientation = Quat::Identity();
+  double radius = 0.0;
   double mass = 0.0;                  ///< M, kg (= sum of the new particles' masses)
   double volume = 0.0;                ///< V_block, m^3 (= sum of their buoyant volumes)
   Vec3 lattice_shift = Vec3::Zero();  ///< translation applied to the lattice (step 2), m
@@ -86,9 +103,10 @@ Mat3 box_inertia_world(const Vec3& half_extents, const Quat& orientation, double
 /// must give the same answer on every rank (it sees replicated data, e.g. the rigid world).
 using SiteBlocked = std::function<bool(const Vec3& site, double radius)>;
 /// Converts `block` into bonded particles added to `engine`, serial or distributed (then
-/// collective: every rank passes the same block and material). Throws hs::InputError (path
-/// "block" or "material") on bad input, on every rank alike, and adds nothing then.
+/// collective: every rank passes the same block, material and attachments; an attachment's
+/// particle may live on any rank). Throws hs::InputError (path "block" or "material") on bad
+/// input, on every rank alike, and adds nothing then.
 ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& material,
-                               const SiteBlocked& blocked = {});
+                               const SiteBlocked& blocked = {}, const std::vector<Attachment>& attach = {});
 
 }  // namespace hs::bridge

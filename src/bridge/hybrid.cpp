@@ -423,27 +423,25 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
     }
     return false;
   };
-  const ConversionReport r = convert_block(engine_, b, m.def.ice, inside_other);
-  const bool indexed = r.first != ConversionReport::kNoIndex;  // serial: the new particles' range
-  // Freeze bonds carry over: the block's bonds to particles become particle-particle freeze
-  // bonds to its new particles, and its joints to other blocks become block-particle bonds.
-  // (Serial only: under MPI block-particle bonds cannot be made after distribute(), and the
-  // released ones are dropped; docs/bridge.md.)
-  const std::vector<ReleasedBond> released = m.bonds.release_block(id.index);
-  if (indexed)
-    report_.block_bonds_handed_over += hand_over_to_particles(engine_, released, r.first, r.particles_created);
-  else
-    report_.block_bonds_dropped += released.size();
+  // Freeze bonds carry over (docs/bridge.md, "Conversion"): the block's bonds to particles
+  // become particle-particle freeze bonds to its new particles (attachments, made by the
+  // converter), and its joints to other blocks become block-particle bonds. Both are chosen from
+  // replicated data (the bond list, the new particles' site list), so under MPI every rank makes
+  // the same choice. (A block the converter refuses keeps its bonds.)
+  std::vector<Attachment> attach;
+  for (const ReleasedBond& rb : m.bonds.bonds_of(id.index)) attach.push_back({rb.gid, rb.anchor});
+  const ConversionReport r = convert_block(engine_, b, m.def.ice, inside_other, attach);
+  m.bonds.release_block(id.index);
+  report_.block_bonds_handed_over += r.bonds_attached;
   const std::vector<rigid::JointId> joints = world_->joints_of(id);
-  for (const rigid::JointId j : indexed ? joints : std::vector<rigid::JointId>{}) {
+  for (const rigid::JointId j : joints) {
     const rigid::FreezeJointDef jd = world_->joint_def(j);
     const bool a_stays = !(jd.a == id);
     const rigid::BlockId other = a_stays ? jd.a : jd.b;
     if (world_->fixed(other)) continue;
     // Normal from the remaining block towards the converted one.
-    report_.joints_to_bonds += bond_joint_to_particles(m.bonds, engine_.particles(), other.index, jd.anchor,
-                                                       a_stays ? jd.normal : Vec3(-jd.normal), jd.area, r.first,
-                                                       r.particles_created);
+    report_.joints_to_bonds += bond_joint_to_particles(m.bonds, other.index, jd.anchor,
+                                                       a_stays ? jd.normal : Vec3(-jd.normal), jd.area, r);
   }
   report_.joints_released += joints.size();
   const auto it = std::find(m.ids.begin(), m.ids.end(), id);

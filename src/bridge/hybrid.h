@@ -85,7 +85,6 @@ struct HybridReport {
   std::uint64_t ice_bonds_created = 0;    ///< block-particle freeze bonds made at the start
   std::uint64_t block_bonds_handed_over = 0;  ///< block-particle bonds that became particle bonds
   std::uint64_t joints_to_bonds = 0;      ///< block-particle bonds made from joints of converted blocks
-  std::uint64_t block_bonds_dropped = 0;  ///< under MPI: block-particle bonds of converted blocks, not handed over
 };
 
 /// Everything the hybrid system needs besides the engine and the blocks.

@@ -255,6 +255,14 @@ TEST(Engine, InsertLatticeEqualsAddingParticlesAndBondingThem) {
     xs.push_back(c);
   }
   lat.bonds = touching_pairs(xs, std::vector<double>(xs.size(), 0.5 * ice.D));
+  // Attached freeze bonds from particle 0 (at (-1, 0, 0)): one to a kept site, one to a site the
+  // overlap test drops (not made).
+  auto clear_of_0 = [&](const Vec3& x) { return (x - Vec3(-1.0, 0.0, 0.0)).norm() >= ice.D; };
+  std::uint32_t s_kept = 0, s_dropped = 0;
+  while (!clear_of_0(xs[s_kept])) ++s_kept;
+  while (clear_of_0(xs[s_dropped])) ++s_dropped;
+  lat.attach.push_back({0, s_kept, BondKind::Freeze});
+  lat.attach.push_back({0, s_dropped, BondKind::Freeze});
   const std::size_t n_old = b.particles().size();
   const LatticeInsertReport r = a.insert_lattice(lat);
   // The same by hand: keep the sites clear of the particle at (-1, 0, 0), add, bond.
@@ -265,6 +273,9 @@ TEST(Engine, InsertLatticeEqualsAddingParticlesAndBondingThem) {
       ++kept;
     }
   const std::size_t bonds_by_hand = b.bond_touching(n_old, b.particles().size(), BondKind::Lattice);
+  b.add_bond(0, r.gid[s_kept], BondKind::Freeze);
+  EXPECT_EQ(r.attached, 1u);
+  EXPECT_EQ(r.gid[s_dropped], LatticeInsertReport::kDropped);
   EXPECT_GT(r.particles_dropped, 0u);
   EXPECT_EQ(r.particles_created, kept);
   EXPECT_EQ(r.first_gid, 2u);
@@ -280,6 +291,7 @@ TEST(Engine, InsertLatticeEqualsAddingParticlesAndBondingThem) {
   for (std::size_t k = 0; k < a.bonds().size(); ++k) {
     EXPECT_EQ(a.bonds()[k].gi, b.bonds()[k].gi);
     EXPECT_EQ(a.bonds()[k].gj, b.bonds()[k].gj);
+    EXPECT_EQ(a.bonds()[k].kind, b.bonds()[k].kind);
     EXPECT_EQ(a.bonds()[k].ref.ri, b.bonds()[k].ref.ri);
     EXPECT_EQ(a.bonds()[k].ref.c.coeffs(), b.bonds()[k].ref.c.coeffs());
   }
@@ -302,6 +314,14 @@ TEST(Engine, InsertLatticeEqualsAddingParticlesAndBondingThem) {
   bad = lat;
   bad.sites[3].mass = 0.0;
   EXPECT_THROW(a.insert_lattice(bad), std::invalid_argument);
+  // ... an attach from a particle the engine does not hold, to a missing site, or listed twice.
+  for (const LatticeInsert::Attach& at : {LatticeInsert::Attach{999, 0, BondKind::Freeze},
+                                          LatticeInsert::Attach{0, static_cast<std::uint32_t>(lat.sites.size()), BondKind::Freeze},
+                                          lat.attach[0]}) {
+    bad = lat;
+    bad.attach.push_back(at);
+    EXPECT_THROW(a.insert_lattice(bad), std::invalid_argument);
+  }
   EXPECT_EQ(a.particles().size(), n);
   EXPECT_EQ(a.bonds().size(), nb);
 }

@@ -409,11 +409,13 @@ TEST(BlockBonds, ConversionHandOverConservesBonds) {
   src.set_block(0, b);
   const std::size_t made = src.bond_touching(e.particles(), 0);
   const auto released = src.release_block(0);
+  std::vector<bridge::Attachment> attach;
+  for (const auto& rb : released) attach.push_back({rb.gid, rb.anchor});
   bridge::IceMaterial im;
   im.diameter = kD;
-  const bridge::ConversionReport r = bridge::convert_block(e, block_state(b), im);
-  const std::size_t lattice = e.bonds().size();
-  const std::size_t handed = bridge::hand_over_to_particles(e, released, r.first, r.particles_created);
+  const bridge::ConversionReport r = bridge::convert_block(e, block_state(b), im, {}, attach);
+  const std::size_t lattice = r.bonds_created;
+  const std::size_t handed = r.bonds_attached;
   const double f = max_force(e);
   std::printf("[hand-over] %zu particles on the face, %zu block bonds, %zu released; block -> %zu particles "
               "(%zu lattice bonds); %zu freeze bonds made, engine holds %zu; max |F| after = %.1e N\n",
@@ -425,6 +427,20 @@ TEST(BlockBonds, ConversionHandOverConservesBonds) {
   EXPECT_EQ(freeze_bonds(e), made);
   EXPECT_EQ(e.bonds().size(), lattice + made);
   EXPECT_LT(f, 1e-12 * 20e3 * e.def().bond[1].area());
+  // Each freeze bond goes from its old particle to the new particle nearest the bond's block end.
+  const ParticleStore& ps = e.particles();
+  for (const auto& rb : released) {
+    double nearest = INFINITY;
+    for (std::size_t i = 0; i < ps.size(); ++i)  // (the store was re-sorted by max_force)
+      if (ps.gid[i] >= r.first_gid) nearest = std::min(nearest, (ps.x[i] - rb.anchor).norm());
+    std::size_t found = 0;
+    for (const auto& bd : e.bonds()) {
+      if (bd.kind != BondKind::Freeze || bd.gi != rb.gid) continue;
+      ++found;
+      EXPECT_EQ((ps.x[ps.local(bd.gj)] - rb.anchor).norm(), nearest);
+    }
+    EXPECT_EQ(found, 1u);
+  }
 }
 
 TEST(BlockBonds, FrozenBlockConvertsIntoBondsToTheRemainingBlock) {
@@ -445,8 +461,7 @@ TEST(BlockBonds, FrozenBlockConvertsIntoBondsToTheRemainingBlock) {
   bridge::IceMaterial im;
   im.diameter = kD;
   const bridge::ConversionReport r = bridge::convert_block(e, block_state(bb), im);
-  const std::size_t made =
-      bridge::bond_joint_to_particles(src, e.particles(), 0, anchor, up, area, r.first, r.particles_created);
+  const std::size_t made = bridge::bond_joint_to_particles(src, 0, anchor, up, area, r);
   // Expected: the lowest layer of B's particles with in-plane distance <= sqrt(area/pi).
   const ParticleStore& ps = e.particles();
   double s_min = INFINITY;

@@ -8,8 +8,11 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <functional>
 #include <memory>
+#include <tuple>
+#include <vector>
 
 namespace hs {
 const par::Comm& test_world();  // mpi_main.cpp
@@ -48,6 +51,41 @@ inline double max_position_difference(const bonded::Engine& dist, const bonded::
     m = std::max(m, (a.x[i] - b.x[j]).cwiseAbs().maxCoeff());
   }
   return world().max(m);
+}
+
+/// A bond as (lower id, higher id, kind).
+using BondKey = std::tuple<GlobalId, GlobalId, int>;
+
+/// Every rank's bonds, gathered on rank 0 and sorted (empty elsewhere). Collective.
+inline std::vector<BondKey> gathered_bonds(const bonded::Engine& e) {
+  constexpr std::size_t kRec = 2 * sizeof(GlobalId) + sizeof(int);
+  par::Bytes mine(e.bonds().size() * kRec);
+  char* o = mine.data();
+  for (const bonded::Bond& b : e.bonds()) {
+    const int kind = static_cast<int>(b.kind);
+    std::memcpy(o, &b.gi, sizeof(GlobalId));
+    std::memcpy(o + sizeof(GlobalId), &b.gj, sizeof(GlobalId));
+    std::memcpy(o + 2 * sizeof(GlobalId), &kind, sizeof(int));
+    o += kRec;
+  }
+  const par::Bytes all = world().gather(mine, 0);
+  std::vector<BondKey> out(all.size() / kRec);
+  for (std::size_t k = 0; k < out.size(); ++k) {
+    const char* r = all.data() + k * kRec;
+    std::memcpy(&std::get<0>(out[k]), r, sizeof(GlobalId));
+    std::memcpy(&std::get<1>(out[k]), r + sizeof(GlobalId), sizeof(GlobalId));
+    std::memcpy(&std::get<2>(out[k]), r + 2 * sizeof(GlobalId), sizeof(int));
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+/// A serial engine's bonds, sorted as gathered_bonds gives them.
+inline std::vector<BondKey> sorted_bonds(const bonded::Engine& e) {
+  std::vector<BondKey> out;
+  for (const bonded::Bond& b : e.bonds()) out.emplace_back(b.gi, b.gj, static_cast<int>(b.kind));
+  std::sort(out.begin(), out.end());
+  return out;
 }
 
 /// Ice with bonds of the given strength (Pa) and contact damping from restitution 0.3.

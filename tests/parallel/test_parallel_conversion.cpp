@@ -18,6 +18,8 @@
 namespace hs::bonded {
 namespace {
 
+using test::gathered_bonds;
+using test::sorted_bonds;
 using test::world;
 
 /// The largest difference in position, velocity and spin over the particles with ids in
@@ -46,32 +48,6 @@ StateDiff compare_state(const Engine& dist, const Engine& serial, GlobalId from,
   }
   world().max(m, 3);
   return {m[0], m[1], m[2], world().sum(n)};
-}
-
-/// Every rank's bonds as (lower id, higher id), gathered on rank 0 and sorted (empty elsewhere).
-std::vector<std::pair<GlobalId, GlobalId>> gathered_bonds(const Engine& e) {
-  par::Bytes mine(e.bonds().size() * 2 * sizeof(GlobalId));
-  char* o = mine.data();
-  for (const Bond& b : e.bonds()) {
-    std::memcpy(o, &b.gi, sizeof(GlobalId));
-    std::memcpy(o + sizeof(GlobalId), &b.gj, sizeof(GlobalId));
-    o += 2 * sizeof(GlobalId);
-  }
-  const par::Bytes all = world().gather(mine, 0);
-  std::vector<std::pair<GlobalId, GlobalId>> out(all.size() / (2 * sizeof(GlobalId)));
-  for (std::size_t k = 0; k < out.size(); ++k) {
-    std::memcpy(&out[k].first, all.data() + 2 * k * sizeof(GlobalId), sizeof(GlobalId));
-    std::memcpy(&out[k].second, all.data() + (2 * k + 1) * sizeof(GlobalId), sizeof(GlobalId));
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-std::vector<std::pair<GlobalId, GlobalId>> sorted_bonds(const Engine& e) {
-  std::vector<std::pair<GlobalId, GlobalId>> out;
-  for (const Bond& b : e.bonds()) out.emplace_back(b.gi, b.gj);
-  std::sort(out.begin(), out.end());
-  return out;
 }
 
 /// Ranks that own at least one particle with an id in [from, to), and bonds among them whose

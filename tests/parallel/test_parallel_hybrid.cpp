@@ -10,7 +10,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <algorithm>
 #include <cstdio>
+#include <string>
 
 namespace hs::test {
 namespace {
@@ -216,6 +218,127 @@ TEST(ParallelHybrid, BlockConvertedInAPileInjectsNoEnergyAndMatchesSerial) {
   EXPECT_GT(rep.particles_created, 0u);
   EXPECT_LT(Emax - E0, 0.01 * mgh);
   EXPECT_LT(dx, 1e-9);
+}
+
+// Freeze bonds at a conversion under MPI: blocks A and B side by side on the slab of `make`,
+// straddling the cut(s), each frozen to the slab under it (ice joints) and to each other (a
+// joint over half their common face). A converts: its bonds to the slab's particles become
+// particle freeze bonds to its new particles, and its joint to B becomes bonds from B to the
+// first layer of A's particles. Every rank makes its share from replicated data; the bond set
+// (ids and kinds, gathered) must equal the serial copy's, and so must the motion after.
+struct FrozenPair {
+  std::unique_ptr<bonded::Engine> e;
+  std::unique_ptr<HybridSystem> h;
+};
+
+FrozenPair make_frozen_pair(bool distribute) {
+  FrozenPair r;
+  r.e = std::make_unique<bonded::Engine>(slab_def());
+  bonded::Engine& e = *r.e;
+  const double c = bonded::hcp_layer_spacing(kD);
+  for (const Vec3& x : bonded::hcp_fill_box(Vec3(2.0, 1.0, c), bonded::Pose{Vec3(0, 0, c), Quat::Identity()}, kD)) {
+    bonded::ParticleInit p;
+    p.x = x;
+    p.radius = 0.5 * kD;
+    p.mass = kRhoI * bonded::hcp_cell_volume(kD);
+    e.add_particle(p);
+  }
+  e.bond_touching(0, e.particles().size(), bonded::BondKind::Lattice);
+  double z_bottom = INFINITY, z_top = -INFINITY;
+  for (std::size_t i = 0; i < e.particles().size(); ++i) {
+    z_bottom = std::min(z_bottom, e.particles().x[i].z() - 0.5 * kD);
+    z_top = std::max(z_top, e.particles().x[i].z() + 0.5 * kD);
+  }
+  HybridDef d = dry_hybrid(ConversionMode::Never);  // converted by the test, at a set time
+  std::vector<BlockInit> blocks(3);
+  blocks[0].def.half_extents = Vec3(4, 3, 0.5);  // the floor
+  blocks[0].def.position = Vec3(0, 0, z_bottom - 0.5);
+  blocks[0].def.fixed = true;
+  const double zc = z_top + 1e-4 + 0.2;  // 0.1 mm above the slab's particles
+  for (int k = 1; k <= 2; ++k) {
+    blocks[k].def.half_extents = Vec3(0.5, 0.3, 0.2);
+    // 1 cm apart: with touching faces A's row of sites along B lies within r of B, and the
+    // converter drops it (no site may start against another rigid block), leaving the joint
+    // fewer particles to bond.
+    blocks[k].def.position = Vec3(0.05, k == 1 ? -0.3 : 0.31, zc);
+    blocks[k].def.density = kRhoI;
+  }
+  std::vector<bridge::IceJointInit> ice(2);
+  for (int k = 1; k <= 2; ++k) {
+    ice[k - 1].block = static_cast<std::size_t>(k);
+    ice[k - 1].anchor = blocks[k].def.position - Vec3(0, 0, 0.2);
+    ice[k - 1].normal = -Vec3::UnitZ();
+    ice[k - 1].area = 0.3;
+  }
+  bridge::JointInit ab;
+  ab.a = 1;
+  ab.b = 2;
+  ab.anchor = Vec3(0.05, 0.005, zc);
+  ab.normal = Vec3::UnitY();
+  ab.area = 0.2;
+  r.h = std::make_unique<HybridSystem>(e, d, blocks, std::vector<bridge::JointInit>{ab}, ice);
+  if (distribute) {
+    bonded::ParallelDef pd;
+    pd.grid = {world().size(), 1, 1};
+    e.distribute(world(), pd);
+  }
+  return r;
+}
+
+TEST(ParallelHybrid, FreezeBondsOfAConvertedBlockCarryOverAsInSerial) {
+  FrozenPair ser = make_frozen_pair(false), dis = make_frozen_pair(true);
+  const auto steps = [&](double t) { return static_cast<std::uint64_t>(std::llround(t / ser.e->dt())); };
+  for (std::uint64_t k = 0, n = steps(0.05); k < n; ++k) {
+    ser.h->step();
+    dis.h->step();
+  }
+  const std::size_t ice_bonds = dis.h->block_particle_bonds();
+  const std::size_t freeze_before = static_cast<std::size_t>(
+      std::count_if(ser.e->bonds().begin(), ser.e->bonds().end(),
+                    [](const bonded::Bond& b) { return b.kind == bonded::BondKind::Freeze; }));
+  ser.h->convert(ser.h->world()->blocks().at(1));
+  const auto rep = dis.h->convert(dis.h->world()->blocks().at(1));
+  const auto& rs = ser.h->report();
+  const auto& rd = dis.h->report();
+  const auto all = gathered_bonds(*dis.e);
+  const bool same_bonds = world().broadcast(std::string(all == sorted_bonds(*ser.e) ? "1" : "0")) == "1";
+  if (world().rank() == 0 && !same_bonds) {
+    const auto sb = sorted_bonds(*ser.e);
+    std::vector<BondKey> only_d, only_s;
+    std::set_difference(all.begin(), all.end(), sb.begin(), sb.end(), std::back_inserter(only_d));
+    std::set_difference(sb.begin(), sb.end(), all.begin(), all.end(), std::back_inserter(only_s));
+    for (const auto& b : only_d) std::printf("  only distributed: %llu-%llu kind %d\n", (unsigned long long)std::get<0>(b), (unsigned long long)std::get<1>(b), std::get<2>(b));
+    for (const auto& b : only_s) std::printf("  only serial: %llu-%llu kind %d\n", (unsigned long long)std::get<0>(b), (unsigned long long)std::get<1>(b), std::get<2>(b));
+  }
+  for (std::uint64_t k = 0, n = steps(0.2); k < n; ++k) {
+    ser.h->step();
+    dis.h->step();
+  }
+  const double dx = max_position_difference(*dis.e, *ser.e);
+  double dblock = 0.0;
+  const auto bs = ser.h->world()->blocks(), bd = dis.h->world()->blocks();
+  for (std::size_t k = 0; k < std::min(bs.size(), bd.size()); ++k)
+    dblock = std::max(dblock, (ser.h->world()->position(bs[k]) - dis.h->world()->position(bd[k])).norm());
+  if (world().rank() == 0)
+    std::printf("[ mpi hybrid ] frozen pair, %d ranks: %zu block-particle bonds before; A -> %zu particles; %llu of "
+                "its bonds to the slab became particle freeze bonds (serial %llu), %llu bonds from B to A's particles "
+                "from the joint (serial %llu); bond sets %s; after 0.2 s max |x - x_serial| %.2e m, blocks %.2e m\n",
+                world().size(), ice_bonds, rep.particles_created,
+                static_cast<unsigned long long>(rd.block_bonds_handed_over),
+                static_cast<unsigned long long>(rs.block_bonds_handed_over),
+                static_cast<unsigned long long>(rd.joints_to_bonds), static_cast<unsigned long long>(rs.joints_to_bonds),
+                same_bonds ? "equal" : "DIFFER", dx, dblock);
+  EXPECT_EQ(freeze_before, 0u);
+  EXPECT_GT(rd.block_bonds_handed_over, 0u);
+  EXPECT_GT(rd.joints_to_bonds, 0u);
+  EXPECT_EQ(rd.block_bonds_handed_over, rs.block_bonds_handed_over);
+  EXPECT_EQ(rd.joints_to_bonds, rs.joints_to_bonds);
+  // A's bonds to the slab were handed over one for one; B keeps its own and gains the joint's.
+  EXPECT_EQ(ser.h->block_particle_bonds(), ice_bonds - rs.block_bonds_handed_over + rs.joints_to_bonds);
+  EXPECT_EQ(dis.h->block_particle_bonds(), ser.h->block_particle_bonds());
+  EXPECT_TRUE(same_bonds);
+  EXPECT_LT(dx, 1e-9);
+  EXPECT_LT(dblock, 1e-9);
 }
 
 }  // namespace
