@@ -202,6 +202,16 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   const double erp_scaled = std::min(0.2, 0.2 * wd.dt * 60.0);
   if (!(wd.contact_erp > 0.0)) wd.contact_erp = erp_scaled;
   if (!(wd.joint_erp > 0.0)) wd.joint_erp = erp_scaled;
+  // Every block-block penetration is removed by split impulse (no momentum, no kinetic energy):
+  // a ridge settled at another step rests with overlaps of several cm, and the erp push that
+  // removes those at this step would set the keel moving (docs/bridge.md).
+  wd.split_impulse_depth = 0.0;
+  // Freeze joints as springs with the stiffness per unit area of the particles' freeze bonds
+  // (one bond of normal stiffness k_n per HCP cell face, sqrt(3)/2 D^2): a joint is as stiff as
+  // the bonds it becomes at conversion, and its load is its deformation's, not the solver's
+  // drift corrections (docs/bridge.md, "Freeze joints between blocks").
+  if (!def.rigid_joints && !(wd.joint_stiffness > 0.0) && fb.kn > 0.0)
+    wd.joint_stiffness = fb.kn / (0.5 * std::sqrt(3.0) * def.ice.diameter * def.ice.diameter);
   world_ = std::make_unique<rigid::RigidWorld>(wd);
   if (def.has_structure) m.mesh = world_->add_kinematic_mesh(def.structure);
   std::vector<rigid::BlockId> ids;

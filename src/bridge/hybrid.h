@@ -107,6 +107,9 @@ struct HybridDef {
   /// resolves a collision in one step with an impulse whose force (impulse / step) is far above
   /// the sustained load; the filter lets a load count only when it lasts (docs/bridge.md).
   double stress_time_constant = 0.05;
+  /// Freeze joints between blocks: false (default) springs as stiff per unit area as the
+  /// particles' freeze bonds (unless world.joint_stiffness is set), true Bullet's rigid joints.
+  bool rigid_joints = false;
 };
 
 /// One block to start with.

@@ -66,7 +66,7 @@ struct JointSlot {
   double area = 1.0;
   JointLoad load;
   btJointFeedback feedback{};
-  std::unique_ptr<btFixedConstraint> constraint;
+  std::unique_ptr<btTypedConstraint> constraint;  // btFixedConstraint, or a 6-dof spring
 };
 
 }  // namespace
@@ -102,6 +102,46 @@ struct RigidWorld::Impl {
         joints[id.index]->generation != id.generation)
       throw std::out_of_range("rigid: stale or invalid JointId " + std::to_string(id.index));
     return *joints[id.index];
+  }
+
+  // A freeze joint as six damped springs (RigidWorldDef::joint_stiffness): a frame at the anchor
+  // with x along the normal, all six axes free (lower limit > upper) with a spring at rest in the
+  // current pose. Normal and shear: k = s A; bending (frame y, z): s I; twist (x): s 2 I, with
+  // I = A^2 / (4 pi) for a disc of area A. Damping c = 2 zeta sqrt(k m), m the reduced mass
+  // (linear) or reduced inertia about the axis through the anchor (angular), as Bullet's spring
+  // rows see them.
+  std::unique_ptr<btTypedConstraint> spring_joint(const BlockSlot& sa, const BlockSlot& sb, const FreezeJointDef& d) {
+    const btRigidBody& A = *sa.body;
+    const btRigidBody& B = *sb.body;
+    const Vec3 n = d.normal.normalized();
+    const Quat q = Quat::FromTwoVectors(Vec3::UnitX(), n);
+    const btTransform frame(btQuaternion(q.x(), q.y(), q.z(), q.w()), to_bt(d.anchor));
+    auto c = std::make_unique<btGeneric6DofSpring2Constraint>(const_cast<btRigidBody&>(A), const_cast<btRigidBody&>(B),
+                                                              A.getWorldTransform().inverse() * frame,
+                                                              B.getWorldTransform().inverse() * frame);
+    c->setLinearLowerLimit(btVector3(1, 1, 1));
+    c->setLinearUpperLimit(btVector3(-1, -1, -1));
+    c->setAngularLowerLimit(btVector3(1, 1, 1));
+    c->setAngularUpperLimit(btVector3(-1, -1, -1));
+    const double s = def.joint_stiffness, I = d.area * d.area / (4.0 * 3.14159265358979323846);
+    const Mat3 R = q.toRotationMatrix();
+    auto reduced = [](double a, double b) { return a > 0.0 && b > 0.0 ? a * b / (a + b) : std::max(a, b); };
+    auto mass = [](const btRigidBody& b) { return b.getInvMass() > 0.0 ? 1.0 / b.getInvMass() : 0.0; };
+    auto inertia = [&](const btRigidBody& b, const Vec3& axis) {  // about `axis` through the anchor
+      if (!(b.getInvMass() > 0.0)) return 0.0;
+      const Vec3 r = d.anchor - from_bt(b.getCenterOfMassPosition());
+      return mass(b) * r.squaredNorm() + 1.0 / from_bt(b.getInvInertiaTensorWorld() * to_bt(axis)).norm();
+    };
+    for (int k = 0; k < 6; ++k) {
+      const double kk = k < 3 ? s * d.area : s * (k == 3 ? 2.0 * I : I);
+      const double me = k < 3 ? reduced(mass(A), mass(B))
+                              : reduced(inertia(A, R.col(k - 3)), inertia(B, R.col(k - 3)));
+      c->enableSpring(k, true);
+      c->setStiffness(k, kk);
+      c->setDamping(k, 2.0 * def.joint_damping_ratio * std::sqrt(kk * me));
+    }
+    c->setEquilibriumPoint();
+    return c;
   }
 
   void drop_constraint(JointSlot& j) {
@@ -183,6 +223,10 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   if (def.friction < 0.0) throw InputError("rigid/friction", "must be >= 0");
   if (def.freeze_bond_strength < 0.0)
     throw InputError("rigid/freeze_bond_strength", "must be >= 0 (Pa)");
+  if (!(def.joint_stiffness >= 0.0) || !std::isfinite(def.joint_stiffness))
+    throw InputError("rigid/joint_stiffness", "must be >= 0 (Pa/m; 0 = rigid joints)");
+  if (!(def.joint_damping_ratio >= 0.0) || !std::isfinite(def.joint_damping_ratio))
+    throw InputError("rigid/joint_damping_ratio", "must be >= 0");
   m.def = def;
   m.tensile_strength = def.freeze_bond_strength;
   m.shear_strength =
@@ -198,6 +242,9 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   m.world->getSolverInfo().m_numIterations = std::max(1, def.solver_iterations);
   if (def.contact_erp > 0.0) m.world->getSolverInfo().m_erp2 = def.contact_erp;
   if (def.joint_erp > 0.0) m.world->getSolverInfo().m_erp = def.joint_erp;
+  if (!(def.split_impulse_depth >= 0.0)) throw InputError("rigid/split_impulse_depth", "must be >= 0 (m)");
+  m.world->getSolverInfo().m_splitImpulse = true;
+  m.world->getSolverInfo().m_splitImpulsePenetrationThreshold = -def.split_impulse_depth;
   if (def.fixed_friction_directions)
     m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |
                                              SOLVER_ENABLE_FRICTION_DIRECTION_CACHING |
@@ -566,9 +613,12 @@ JointId RigidWorld::add_freeze_joint(const FreezeJointDef& d) {
   const btTransform& tb = sb.body->getWorldTransform();
   j.normal_in_a = from_bt(ta.getBasis().transpose() * to_bt(d.normal.normalized()));
   j.anchor_in_a = from_bt(ta.inverse() * to_bt(d.anchor));
-  const btTransform anchor(btQuaternion::getIdentity(), to_bt(d.anchor));
-  j.constraint = std::make_unique<btFixedConstraint>(*sa.body, *sb.body, ta.inverse() * anchor,
-                                                     tb.inverse() * anchor);
+  if (!(m.def.joint_stiffness > 0.0)) {
+    const btTransform anchor(btQuaternion::getIdentity(), to_bt(d.anchor));
+    j.constraint = std::make_unique<btFixedConstraint>(*sa.body, *sb.body, ta.inverse() * anchor, tb.inverse() * anchor);
+  } else {
+    j.constraint = m.spring_joint(sa, sb, d);
+  }
   j.feedback = btJointFeedback{};
   j.constraint->setJointFeedback(&j.feedback);
   j.constraint->enableFeedback(true);

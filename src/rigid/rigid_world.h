@@ -79,10 +79,25 @@ struct RigidWorldDef {
   /// generated ridge apart; the hybrid scales erp with dt (docs/bridge.md).
   double contact_erp = -1.0;
   double joint_erp = -1.0;
+  /// Penetrations deeper than this (m) are removed by Bullet's split impulse: a position
+  /// correction that adds no momentum or kinetic energy; shallower ones by the erp velocity
+  /// push, which does. Bullet's default 0.04 m; 0 = every penetration by split impulse.
+  double split_impulse_depth = 0.04;
 
   // Freeze joints.
   double freeze_bond_strength = 50e3;        ///< tensile strength sigma_t, Pa
   double freeze_bond_shear_strength = -1.0;  ///< tau_s, Pa; < 0 means = sigma_t
+  /// Joint compliance. 0: a joint is rigid (btFixedConstraint), its load whatever the solver's
+  /// impulses make it, drift corrections (joint_erp) included. > 0: a joint is a spring over
+  /// its patch, normal and shear stiffness `joint_stiffness` x area (N/m; the stiffness is per
+  /// unit patch area, Pa/m), bending and twisting stiffness the same times the disc patch's
+  /// second moment I = area^2 / (4 pi) and polar moment 2 I (N m/rad), each damped with
+  /// ratio `joint_damping_ratio` (of the two blocks' reduced mass or inertia), and its load is
+  /// the spring-damper force: determined by the deformation, not by the solver's drift
+  /// corrections (docs/rigid.md, "Freeze joints"). Bullet keeps each spring below a quarter of
+  /// its sampling rate (k <= m / (16 dt^2)), softening it at large steps.
+  double joint_stiffness = 0.0;
+  double joint_damping_ratio = 0.5;
 
   /// Allow Bullet to put resting blocks to sleep (off: floating blocks must respond
   /// to the water at every step, and sleeping hurts determinism across scenes).

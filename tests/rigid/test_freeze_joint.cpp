@@ -3,6 +3,8 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <cstdio>
 
 namespace hs::rigid {
@@ -103,6 +105,73 @@ TEST(RigidFreezeJoint, HoldsBelowStrengthAndUnderCompression) {
   EXPECT_FALSE(w.joint_broken(j));
   EXPECT_LT(w.position(ib).x(), 1.0 + 1e-3);
   EXPECT_GT(w.position(ib).x(), 1.0 - 2e-2);
+}
+
+// Spring joints (RigidWorldDef::joint_stiffness): s = 1e7 Pa/m, a step of 1 ms so that no
+// spring is softened by Bullet's limit (omega dt <= 0.25; here <= 0.11).
+RigidWorldDef spring_world() {
+  RigidWorldDef def = dry_world();
+  def.dt = 1e-3;
+  def.joint_stiffness = 1e7;
+  return def;
+}
+
+TEST(RigidFreezeJoint, SpringJointBreaksAtStrengthInTensionAndShear) {
+  const RigidWorldDef def = spring_world();
+  const BreakResult t = pull_until_break(def, Vec3::UnitX(), false, 20e3);
+  const BreakResult s = pull_until_break(def, Vec3::UnitY(), true, 12e3);
+  ASSERT_TRUE(t.broke);
+  ASSERT_TRUE(s.broke);
+  const double rt = t.force_at_break / def.freeze_bond_strength, rs = s.force_at_break / def.freeze_bond_shear_strength;
+  std::printf("[ rigid ] spring joint: tension break at %.1f N (ratio %.4f), shear break at %.1f N (ratio %.4f)\n",
+              t.force_at_break, rt, s.force_at_break, rs);
+  EXPECT_NEAR(rt, 1.0, 0.05);
+  EXPECT_NEAR(rs, 1.0, 0.05);
+}
+
+TEST(RigidFreezeJoint, SpringJointHasTheStatedStiffnesses) {
+  // Block b joined to fixed block a over 1 m^2 (1 m cubes, 5 mm gap); a static load held 2 s
+  // (damping ratio 0.5: many periods) deflects the joint by load / stiffness: stretch and shear
+  // F / (s A), bending and twisting M / (s I) and M / (2 s I), I = A^2 / (4 pi).
+  const RigidWorldDef def = spring_world();
+  const double A = 1.0, I = A * A / (4.0 * 3.14159265358979323846), F = 10e3, z0 = 0.4;
+  const Vec3 anchor(0.5025, 0, 0);
+  for (int mode = 0; mode < 4; ++mode) {
+    RigidWorld w(def);
+    BlockDef a;
+    a.half_extents = Vec3(0.5, 0.5, 0.5);
+    a.fixed = true;
+    BlockDef b = a;
+    b.fixed = false;
+    b.density = 910.0;
+    b.position = Vec3(1.005, 0, 0);
+    const BlockId ia = w.add_block(a), ib = w.add_block(b);
+    const JointId j = w.add_freeze_joint({ia, ib, anchor, Vec3::UnitX(), A});
+    const Vec3 c = w.position(ib);
+    if (mode == 0) w.add_force(ib, Vec3(F, 0, 0), c);                  // stretch
+    if (mode == 1) w.add_force(ib, Vec3(0, F, 0), anchor);             // shear, no moment
+    if (mode == 2) {                                                   // bending couple about y
+      w.add_force(ib, Vec3(F, 0, 0), c + Vec3(0, 0, -z0));
+      w.add_force(ib, Vec3(-F, 0, 0), c + Vec3(0, 0, z0));
+    }
+    if (mode == 3) {                                                   // twisting couple about x
+      w.add_force(ib, Vec3(0, F, 0), c + Vec3(0, 0, -z0));
+      w.add_force(ib, Vec3(0, -F, 0), c + Vec3(0, 0, z0));
+    }
+    w.step(2.0);
+    ASSERT_FALSE(w.joint_broken(j));
+    const Vec3 d = w.position(ib) - c;
+    const double angle = 2.0 * std::asin(std::min(1.0, w.orientation(ib).vec().norm()));
+    const double M = 2.0 * F * z0;
+    const char* names[4] = {"stretch", "shear", "bending", "twist"};
+    const double got[4] = {d.x(), d.y(), angle, angle};
+    const double want[4] = {F / (def.joint_stiffness * A), F / (def.joint_stiffness * A), M / (def.joint_stiffness * I),
+                            M / (2.0 * def.joint_stiffness * I)};
+    std::printf("[ rigid ] spring joint %s: %.4e (expected %.4e), ratio %.4f; speed %.1e m/s\n", names[mode],
+                got[mode], want[mode], got[mode] / want[mode], w.velocity(ib).norm());
+    EXPECT_NEAR(got[mode] / want[mode], 1.0, 0.02);
+    EXPECT_LT(w.velocity(ib).norm(), 1e-4) << "damped to rest";
+  }
 }
 
 TEST(RigidFreezeJoint, RemovedWithItsBlock) {
