@@ -20,69 +20,11 @@ namespace {
 
 using test::world;
 
-/// The largest difference in position, velocity and spin over the particles with ids in
-/// [from, to) (all ranks), and how many the distributed copy holds: a particle the serial copy
-/// lacks counts as infinite.
-struct StateDiff {
-  double x = 0.0, v = 0.0, w = 0.0;
-  std::int64_t count = 0;
-};
-StateDiff compare_state(const Engine& dist, const Engine& serial, GlobalId from, GlobalId to) {
-  const auto& a = dist.particles();
-  const auto& b = serial.particles();
-  double m[3] = {0.0, 0.0, 0.0};
-  std::int64_t n = 0;
-  for (std::size_t i = 0; i < a.owned(); ++i) {
-    if (a.gid[i] < from || a.gid[i] >= to) continue;
-    ++n;
-    const auto j = b.local(a.gid[i]);
-    if (j == ParticleStore::kNone) {
-      m[0] = m[1] = m[2] = INFINITY;
-      continue;
-    }
-    m[0] = std::max(m[0], (a.x[i] - b.x[j]).cwiseAbs().maxCoeff());
-    m[1] = std::max(m[1], (a.v[i] - b.v[j]).cwiseAbs().maxCoeff());
-    m[2] = std::max(m[2], (a.omega[i] - b.omega[j]).cwiseAbs().maxCoeff());
-  }
-  world().max(m, 3);
-  return {m[0], m[1], m[2], world().sum(n)};
-}
-
-/// Every rank's bonds as (lower id, higher id), gathered on rank 0 and sorted (empty elsewhere).
-std::vector<std::pair<GlobalId, GlobalId>> gathered_bonds(const Engine& e) {
-  par::Bytes mine(e.bonds().size() * 2 * sizeof(GlobalId));
-  char* o = mine.data();
-  for (const Bond& b : e.bonds()) {
-    std::memcpy(o, &b.gi, sizeof(GlobalId));
-    std::memcpy(o + sizeof(GlobalId), &b.gj, sizeof(GlobalId));
-    o += 2 * sizeof(GlobalId);
-  }
-  const par::Bytes all = world().gather(mine, 0);
-  std::vector<std::pair<GlobalId, GlobalId>> out(all.size() / (2 * sizeof(GlobalId)));
-  for (std::size_t k = 0; k < out.size(); ++k) {
-    std::memcpy(&out[k].first, all.data() + 2 * k * sizeof(GlobalId), sizeof(GlobalId));
-    std::memcpy(&out[k].second, all.data() + (2 * k + 1) * sizeof(GlobalId), sizeof(GlobalId));
-  }
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-std::vector<std::pair<GlobalId, GlobalId>> sorted_bonds(const Engine& e) {
-  std::vector<std::pair<GlobalId, GlobalId>> out;
-  for (const Bond& b : e.bonds()) out.emplace_back(b.gi, b.gj);
-  std::sort(out.begin(), out.end());
-  return out;
-}
-
-/// Ranks that own at least one particle with an id in [from, to), and bonds among them whose
-/// ends sit on different ranks (counted on the rank that holds the bond).
-std::pair<std::int64_t, std::int64_t> spread(const Engine& e, GlobalId from, GlobalId to) {
-  const auto& p = e.particles();
-  std::int64_t here = 0, across = 0;
-  for (std::size_t i = 0; i < p.owned(); ++i) here |= p.gid[i] >= from && p.gid[i] < to;
-  for (const Bond& b : e.bonds()) across += b.gi >= from && b.j >= p.owned();
-  return {world().sum(here), world().sum(across)};
-}
+using test::compare_state;
+using test::gathered_bonds;
+using test::sorted_bonds;
+using test::spread;
+using test::StateDiff;
 
 double rel(const Vec3& a, const Vec3& b) { return (a - b).norm() / b.norm(); }
 
