@@ -1,6 +1,7 @@
 // Shared set-ups of the hybrid-system tests (tests/bridge and the MPI tests in tests/parallel):
 // particle ice with E = 1e8 Pa and D = 0.2 m, a dry hybrid definition, a block released above the
-// cone's slope, a settled pile of three blocks, and the total energy of such a system.
+// cone's slope, a settled pile of three blocks, the total energy of such a system, and the
+// three-point bending run of a beam block (bend()).
 #pragma once
 
 #include "bonded/contact_linear.h"
@@ -10,6 +11,7 @@
 #include "mesh/pier.h"
 
 #include <cmath>
+#include <cstdint>
 #include <vector>
 
 namespace hs::test::hybrid {
@@ -120,6 +122,187 @@ inline double total_energy(const bonded::Engine& e, const bridge::HybridSystem& 
   for (const rigid::BlockId id : w.blocks())
     if (!w.fixed(id)) E += w.mass(id) * kG * w.position(id).z();
   return E;
+}
+
+// ---- Three-point bending (tests/bridge/test_conversion_consistency.cpp and its MPI twin) ----
+
+// Three-point bending. The beam needs several particle layers through its depth to bend, so
+// D = 0.1 m here (the set-ups above use 0.2 m: two layers in 0.4 m).
+inline constexpr double kDb = 0.1;
+// Lattice bonds of the particle ice: tensile strength (normal + bending stress of the parallel
+// bond) and shear strength, Pa. Shear twice tension, so that the beam fails in bending.
+inline constexpr double kSigmaC = 0.5e6, kTauC = 1.0e6;
+// "The beam breaks" = the broken-bond count reaches kCrackBonds, one per lattice row of the
+// bottom layer (6 rows across the 0.6 m width): a crack across the tensile face at mid-span.
+// The break load is the largest load on the beam up to that step (after the conversion, in
+// hybrid mode). Not "the load falls to half its maximum": the lattice beam does not fail in one
+// go. Its load peaks as the bottom layer cracks (the first bonds to break are in tension, in the
+// bottom layer within 8 cm of mid-span), dips, and then climbs again with the crack arrested in
+// the HCP layers above and the two halves wedged together under the indenter. All-particle run
+// continued to 1.6 s: 37.0 kN at 6 bonds broken, 35.0 kN at 10, back above 37 kN at 0.96 s,
+// 63.0 kN at 1.58 s with 83 bonds broken; no step falls to half the maximum.
+inline constexpr std::uint64_t kCrackBonds = 6;
+
+// Particle ice of diameter kDb: lattice bonds with the finite strengths above; freeze bonds
+// (used here only inside the load pad, see bend()) unbreakable. No gravity (see bend()).
+inline bonded::EngineDef bend_ice_def() {
+  bonded::EngineDef d = ice_def(0.05);
+  d.gravity = Vec3::Zero();
+  d.contact.kn = d.contact.kt = kPi * kE * kDb / 12.0;
+  const double m = kRhoI * bonded::hcp_cell_volume(kDb), I = 0.4 * m * 0.25 * kDb * kDb;
+  d.bond[0] = bonded::ParallelBondParams::from_stiffness(d.contact.kn, d.contact.kn, 0.5 * kDb, kSigmaC, kTauC, 0.3,
+                                                         0.5 * m, 0.5 * I);
+  d.bond[1] = bonded::ParallelBondParams::from_stiffness(d.contact.kn, d.contact.kn, 0.5 * kDb, INFINITY, INFINITY,
+                                                         0.3, 0.5 * m, 0.5 * I);
+  return d;
+}
+
+// Axis-aligned closed box [lo, hi]: 12 triangles, counter-clockwise seen from outside, one part.
+inline mesh::TriMesh box_mesh(const Vec3& lo, const Vec3& hi) {
+  mesh::TriMesh m;
+  for (int k = 0; k < 8; ++k)
+    m.vertices.emplace_back((k & 1) ? hi.x() : lo.x(), (k & 2) ? hi.y() : lo.y(), (k & 4) ? hi.z() : lo.z());
+  const std::uint32_t q[6][4] = {{0, 2, 3, 1}, {4, 5, 7, 6}, {0, 1, 5, 4}, {2, 6, 7, 3}, {0, 4, 6, 2}, {1, 3, 7, 5}};
+  for (const auto& f : q) {
+    m.triangles.push_back({f[0], f[1], f[2]});
+    m.triangles.push_back({f[0], f[2], f[3]});
+  }
+  m.triangle_part.assign(m.triangles.size(), 0);
+  m.part_names = {"indenter"};
+  mesh::build_topology(m);
+  return m;
+}
+
+struct BendResult {
+  double peak = 0.0;                 // largest load on the beam (hybrid: after the conversion), N
+  double peak_time = 0.0;            // s
+  double break_time = -1.0;          // s; < 0: did not break
+  double load_at_conversion = -1.0;  // N, the load on the beam in the step the policy converted it
+  double conversion_time = -1.0;     // s
+  double final_load = 0.0;           // N, at the end of the run
+  std::uint64_t conversions = 0, bonds_broken = 0, sites_dropped = 0;
+  std::size_t particles = 0;         // all ranks, at the end
+  std::vector<double> loads;         // N, the load on the beam after every step
+  // Distributed runs (1 and 0 when serial), at the end: ranks that own particles, bonds whose
+  // two particles are owned by different ranks.
+  std::int64_t ranks_with_particles = 1, bonds_across_ranks = 0;
+};
+
+// Three-point bending of a 2.4 m x 0.6 m beam block, 5 particle layers deep (0.43 m), on two
+// fixed rigid support blocks 2.0 m apart (centre to centre, each 0.2 m wide), pressed at mid-span
+// by a kinematic box indenter (0.2 m x 0.8 m) moving down at 0.04 m/s through a load pad; the
+// run stops when the beam breaks (kCrackBonds) or at t_end.
+//
+// No gravity: the beam starts stress free, and every load on it is the indenter's and the
+// supports' reactions. The indenter is both the particles' mesh wall and the rigid world's
+// kinematic mesh (the structure). Its loads are those exerted BY the ice ON it, +z when the ice
+// is pressed down, so the load on the beam is +(particles' mesh-wall z load + blocks'
+// kinematic-mesh z load).
+//
+// The load pad: one layer of 2 x 6 particles joined by unbreakable bonds, between indenter and
+// beam, in every run. Without it the rigid beam of the hybrid run is squeezed between a
+// kinematic body and fixed blocks, with no compliance anywhere, and its load is whatever Bullet's
+// solver makes of the conflict (tried: 949 kN in the first rigid step of contact, 25 times the
+// particle beam's break load, and 2e9 N after 1 s in `never` mode), so the beam converted at a
+// meaningless load. With the pad the load on the rigid beam is the pad's contact springs' and
+// grows smoothly, as on the particle beam.
+//
+// The rigid beam is 1 mm deeper at top and bottom than the 5 HCP layers (spacing sqrt(2/3) D)
+// that fill it: the converter centres the lattice, so the particle beam has 1 mm of clearance to
+// the supports and the pad, and no site of the converted beam comes within contact distance of
+// the pad pressing the block's top face (such sites would be dropped; checked: none is).
+//
+// distribute_over: spread the engine over this communicator's ranks (grid P x 1 x 1, cuts
+// across the beam) once the hybrid system is built; every rank then calls bend() together.
+inline BendResult bend(bridge::ConversionMode mode, double flexural_strength, double t_end,
+                        const par::Comm* distribute_over = nullptr) {
+  constexpr double kV = 0.04;  // m/s; quasi-static: the beam's first bending mode is ~16 Hz
+  bonded::Engine e(bend_ice_def());
+  add_spectator(e);
+  const double hz0 = 0.5 * (4.0 * std::sqrt(2.0 / 3.0) * kDb + kDb), hz = hz0 + 1e-3;
+  // The pad, 0.1 mm above the block's top face (exactly touching, rounding can make an overlap,
+  // and HybridSystem would then move the block clear of the particles).
+  const double r = 0.5 * kDb, zp = hz + r + 1e-4;
+  const std::size_t pad_first = e.particles().owned();
+  for (int i = 0; i < 2; ++i)
+    for (int j = 0; j < 6; ++j) {
+      bonded::ParticleInit p;
+      p.x = Vec3(-0.05 + 0.1 * i, -0.25 + 0.1 * j, zp);
+      p.radius = r;
+      p.mass = kRhoI * bonded::hcp_cell_volume(kDb);
+      e.add_particle(p);
+    }
+  e.bond_touching(pad_first, e.particles().owned(), bonded::BondKind::Freeze);
+  const double gap = 1e-3;  // indenter above the pad at t = 0
+  bonded::MeshWallDef md;
+  md.name = "indenter";
+  md.mesh = box_mesh(Vec3(-0.1, -0.4, zp + r + gap), Vec3(0.1, 0.4, zp + r + gap + 0.2));
+  md.velocity = Vec3(0, 0, -kV);
+  md.friction = 0.1;
+  const int wall = e.add_mesh_wall(md);
+  // 0.09 D sqrt(rho/E) = 2.73e-5 s, below the engine's critical step with the beam (2.87e-5 s),
+  // which 0.1 D sqrt(rho/E) (ice_dt(), the set-ups above) exceeds; the same step in every run.
+  e.set_dt(0.09 * kDb * std::sqrt(kRhoI / kE));
+  bridge::HybridDef d = dry_hybrid(mode);
+  d.world.gravity = Vec3::Zero();
+  d.ice.diameter = kDb;
+  d.has_structure = true;
+  d.structure.vertices = md.mesh.vertices;
+  d.structure.triangles = md.mesh.triangles;
+  d.structure.triangle_part = md.mesh.triangle_part;
+  d.structure.part_count = 1;
+  d.structure.velocity = md.velocity;
+  d.structure.friction = 0.1;
+  d.region.shape = bridge::ConversionRegion::Shape::Box;
+  d.region.half_extents = Vec3(5, 5, 5);
+  d.flexural_strength = flexural_strength;
+  std::vector<bridge::BlockInit> blocks(3);
+  blocks[0].def.half_extents = Vec3(1.2, 0.3, hz);
+  blocks[0].def.density = kRhoI;
+  for (int s = 1; s <= 2; ++s) {
+    blocks[s].def.half_extents = Vec3(0.1, 0.5, 0.2);
+    blocks[s].def.position = Vec3(s == 1 ? -1.0 : 1.0, 0.0, -hz - 0.2);
+    blocks[s].def.fixed = true;
+  }
+  bridge::HybridSystem h(e, d, blocks);
+  if (distribute_over) {
+    bonded::ParallelDef pd;
+    pd.grid = {distribute_over->size(), 1, 1};
+    e.distribute(*distribute_over, pd);
+  }
+  BendResult out;
+  std::uint64_t conversions = h.report().conversions;
+  const auto n_steps = static_cast<std::uint64_t>(std::llround(t_end / e.dt()));
+  for (std::uint64_t k = 0; k < n_steps; ++k) {
+    h.step();
+    const double F = e.mesh_wall_load(wall).force.z() + h.structure_force().z();
+    out.final_load = F;
+    out.loads.push_back(F);
+    if (h.report().conversions > conversions) {
+      conversions = h.report().conversions;
+      out.conversion_time = e.time();
+      out.load_at_conversion = F;
+      out.peak = 0.0;  // the break load is the particle beam's
+    }
+    if (F > out.peak) {
+      out.peak = F;
+      out.peak_time = e.time();
+    }
+    if (e.stats().bonds_broken >= kCrackBonds) {
+      out.break_time = e.time();
+      break;
+    }
+  }
+  out.conversions = h.report().conversions;
+  out.sites_dropped = h.report().sites_dropped;
+  out.bonds_broken = e.stats().bonds_broken;
+  out.particles = static_cast<std::size_t>(e.global_particle_count());
+  std::int64_t n[2] = {e.particles().owned() > 0 ? 1 : 0, 0};
+  for (const bonded::Bond& bd : e.bonds()) n[1] += bd.j >= e.particles().owned();
+  e.comm().sum(n, 2);
+  out.ranks_with_particles = n[0];
+  out.bonds_across_ranks = n[1];
+  return out;
 }
 
 }  // namespace hs::test::hybrid

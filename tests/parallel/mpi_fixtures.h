@@ -1,5 +1,6 @@
-// Helpers shared by the MPI tests: the world communicator, and a system built twice on every
-// rank, one copy kept serial (par::serial()) and one distributed, compared by global id.
+// Helpers shared by the MPI tests: the world communicator, a system built twice on every rank,
+// one copy kept serial (par::serial()) and one distributed, and their comparison by global id
+// (particle states, bond sets, how a set of particles spreads over the ranks).
 #pragma once
 
 #include "../bonded/fixtures.h"
@@ -8,10 +9,12 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <functional>
 #include <memory>
 #include <tuple>
+#include <utility>
 #include <vector>
 
 namespace hs {
@@ -53,6 +56,34 @@ inline double max_position_difference(const bonded::Engine& dist, const bonded::
   return world().max(m);
 }
 
+/// The largest difference in position, velocity and spin over the particles with ids in
+/// [from, to) (all ranks), and how many the distributed copy holds: a particle the serial copy
+/// lacks counts as infinite.
+struct StateDiff {
+  double x = 0.0, v = 0.0, w = 0.0;
+  std::int64_t count = 0;
+};
+inline StateDiff compare_state(const bonded::Engine& dist, const bonded::Engine& serial, GlobalId from, GlobalId to) {
+  const auto& a = dist.particles();
+  const auto& b = serial.particles();
+  double m[3] = {0.0, 0.0, 0.0};
+  std::int64_t n = 0;
+  for (std::size_t i = 0; i < a.owned(); ++i) {
+    if (a.gid[i] < from || a.gid[i] >= to) continue;
+    ++n;
+    const auto j = b.local(a.gid[i]);
+    if (j == bonded::ParticleStore::kNone) {
+      m[0] = m[1] = m[2] = INFINITY;
+      continue;
+    }
+    m[0] = std::max(m[0], (a.x[i] - b.x[j]).cwiseAbs().maxCoeff());
+    m[1] = std::max(m[1], (a.v[i] - b.v[j]).cwiseAbs().maxCoeff());
+    m[2] = std::max(m[2], (a.omega[i] - b.omega[j]).cwiseAbs().maxCoeff());
+  }
+  world().max(m, 3);
+  return {m[0], m[1], m[2], world().sum(n)};
+}
+
 /// A bond as (lower id, higher id, kind).
 using BondKey = std::tuple<GlobalId, GlobalId, int>;
 
@@ -86,6 +117,16 @@ inline std::vector<BondKey> sorted_bonds(const bonded::Engine& e) {
   for (const bonded::Bond& b : e.bonds()) out.emplace_back(b.gi, b.gj, static_cast<int>(b.kind));
   std::sort(out.begin(), out.end());
   return out;
+}
+
+/// Ranks that own at least one particle with an id in [from, to), and bonds among them whose
+/// ends sit on different ranks (counted on the rank that holds the bond).
+inline std::pair<std::int64_t, std::int64_t> spread(const bonded::Engine& e, GlobalId from, GlobalId to) {
+  const auto& p = e.particles();
+  std::int64_t here = 0, across = 0;
+  for (std::size_t i = 0; i < p.owned(); ++i) here |= p.gid[i] >= from && p.gid[i] < to;
+  for (const bonded::Bond& b : e.bonds()) across += b.gi >= from && b.j >= p.owned();
+  return {world().sum(here), world().sum(across)};
 }
 
 /// Ice with bonds of the given strength (Pa) and contact damping from restitution 0.3.

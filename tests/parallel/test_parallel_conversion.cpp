@@ -18,47 +18,13 @@
 namespace hs::bonded {
 namespace {
 
-using test::gathered_bonds;
-using test::sorted_bonds;
 using test::world;
 
-/// The largest difference in position, velocity and spin over the particles with ids in
-/// [from, to) (all ranks), and how many the distributed copy holds: a particle the serial copy
-/// lacks counts as infinite.
-struct StateDiff {
-  double x = 0.0, v = 0.0, w = 0.0;
-  std::int64_t count = 0;
-};
-StateDiff compare_state(const Engine& dist, const Engine& serial, GlobalId from, GlobalId to) {
-  const auto& a = dist.particles();
-  const auto& b = serial.particles();
-  double m[3] = {0.0, 0.0, 0.0};
-  std::int64_t n = 0;
-  for (std::size_t i = 0; i < a.owned(); ++i) {
-    if (a.gid[i] < from || a.gid[i] >= to) continue;
-    ++n;
-    const auto j = b.local(a.gid[i]);
-    if (j == ParticleStore::kNone) {
-      m[0] = m[1] = m[2] = INFINITY;
-      continue;
-    }
-    m[0] = std::max(m[0], (a.x[i] - b.x[j]).cwiseAbs().maxCoeff());
-    m[1] = std::max(m[1], (a.v[i] - b.v[j]).cwiseAbs().maxCoeff());
-    m[2] = std::max(m[2], (a.omega[i] - b.omega[j]).cwiseAbs().maxCoeff());
-  }
-  world().max(m, 3);
-  return {m[0], m[1], m[2], world().sum(n)};
-}
-
-/// Ranks that own at least one particle with an id in [from, to), and bonds among them whose
-/// ends sit on different ranks (counted on the rank that holds the bond).
-std::pair<std::int64_t, std::int64_t> spread(const Engine& e, GlobalId from, GlobalId to) {
-  const auto& p = e.particles();
-  std::int64_t here = 0, across = 0;
-  for (std::size_t i = 0; i < p.owned(); ++i) here |= p.gid[i] >= from && p.gid[i] < to;
-  for (const Bond& b : e.bonds()) across += b.gi >= from && b.j >= p.owned();
-  return {world().sum(here), world().sum(across)};
-}
+using test::compare_state;
+using test::gathered_bonds;
+using test::sorted_bonds;
+using test::spread;
+using test::StateDiff;
 
 double rel(const Vec3& a, const Vec3& b) { return (a - b).norm() / b.norm(); }
 
