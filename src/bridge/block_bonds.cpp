@@ -148,6 +148,7 @@ std::uint32_t BlockParticleBonds::lookup(const ParticleStore& ps, std::size_t n_
 
 bonded::ForceSourceResult BlockParticleBonds::add_forces(ParticleStore& ps, std::size_t n_owned,
                                                          const bonded::ForceSourceContext& ctx) {
+  if (record_) recorded_.clear();
   if (n_intact_ == 0) return {};
   const ParallelBondParams& p = ctx.def.bond[static_cast<int>(BondKind::Freeze)];
   const double h = ctx.history_dt;
@@ -172,6 +173,8 @@ bonded::ForceSourceResult BlockParticleBonds::add_forces(ParticleStore& ps, std:
     }
     ps.f[i] -= r.fj;
     ps.torque[i] += r.ti;
+    if (record_)
+      recorded_.push_back({b.block, xv, r.fj, std::max(r.sigma, 0.0) / p.sigma_c, r.tau / p.tau_c});
     if (h > 0.0) {
       impulse_[b.block] += h * r.fj;
       angular_impulse_[b.block] += h * ((xv - B.position).cross(r.fj) + r.tj);

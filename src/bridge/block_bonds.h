@@ -119,6 +119,17 @@ class BlockParticleBonds final : public bonded::ForceSource {
   const char* name() const override { return "a block-particle freeze bond"; }
   bool uses_orientation() const override { return n_intact_ > 0; }
 
+  /// With recording on, every force evaluation also keeps each intact bond's force on its block
+  /// at the block end, and its stress over strength in tension and in shear (owned particles
+  /// only; replacing the last ones): the hybrid's stress estimates read them (block_stress.h).
+  struct PointForce {
+    std::uint32_t block;       ///< block slot
+    Vec3 point, force;         ///< world point of the block end (m), force on the block (N)
+    double u_tension, u_shear; ///< sigma / sigma_c (0 in compression), tau / tau_c
+  };
+  void set_recording(bool on) { record_ = on; }
+  const std::vector<PointForce>& recorded() const { return recorded_; }
+
   /// Linear (N s) and angular (N m s, about each block's centre) impulses on every block slot
   /// since the last call (this rank's share), written over `linear` and `angular` (resized to
   /// block_count()); clears them.
@@ -141,6 +152,8 @@ class BlockParticleBonds final : public bonded::ForceSource {
   std::vector<Vec3> impulse_, angular_impulse_;
   std::size_t n_intact_ = 0;
   BlockBondStats stats_;
+  bool record_ = false;
+  std::vector<PointForce> recorded_;
 };
 
 /// A block frozen to another rigid block by a freeze joint (anchor, normal from the remaining

@@ -279,6 +279,7 @@ void HybridSystem::step() {
     m.extrapolate(engine_.time() + engine_.dt());
     const bool last_before_rigid = m.since_rigid + 1 >= report_.steps_per_rigid_step;
     m.contact.set_recording(last_before_rigid && m.def.mode == ConversionMode::Hybrid);
+    m.bonds.set_recording(last_before_rigid && m.def.mode == ConversionMode::Hybrid);
     report_.seconds_bridge += seconds_since(tb);
   }
   const auto t0 = Clock::now();
@@ -317,6 +318,21 @@ void HybridSystem::step() {
   report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());
 }
 
+namespace {
+
+/// Every rank's records gathered on rank 0 (serial: a copy); trivially copyable T.
+template <class T>
+std::vector<T> gathered_on_root(const par::Comm& comm, const std::vector<T>& rec) {
+  par::Bytes mine(rec.size() * sizeof(T));
+  if (!rec.empty()) std::memcpy(static_cast<void*>(mine.data()), rec.data(), mine.size());
+  const par::Bytes all = comm.parallel() ? comm.gather(mine) : mine;
+  std::vector<T> out(all.size() / sizeof(T));
+  if (!out.empty()) std::memcpy(static_cast<void*>(out.data()), all.data(), out.size() * sizeof(T));
+  return out;
+}
+
+}  // namespace
+
 void HybridSystem::apply_policy() {
   Impl& m = *impl_;
   const Vec3 sp = m.mesh >= 0 ? world_->mesh_position(m.mesh) : Vec3::Zero();
@@ -328,16 +344,23 @@ void HybridSystem::apply_policy() {
   // Under MPI each rank holds the contacts of its own particles: they are gathered on rank 0,
   // which decides, and the list of blocks to convert is broadcast, so that every rank's
   // replicated world converts the same blocks.
+  // The same for the block-particle freeze bonds (recorded by BlockParticleBonds, by block slot):
+  // their forces are loads on the block for the flexural estimate, and their stress over strength
+  // counts in the freeze-bond estimate beside the joints'.
   const par::Comm& comm = engine_.comm();
-  const auto& rec = m.contact.recorded();
-  par::Bytes mine(rec.size() * sizeof(BlockContact::PointForce));
-  if (!rec.empty()) std::memcpy(mine.data(), rec.data(), mine.size());
-  const par::Bytes all = comm.parallel() ? comm.gather(mine) : mine;
   std::vector<std::vector<PointLoad>> particle_loads(m.ids.size());
-  for (std::size_t o = 0; o + sizeof(BlockContact::PointForce) <= all.size(); o += sizeof(BlockContact::PointForce)) {
-    BlockContact::PointForce pf;
-    std::memcpy(static_cast<void*>(&pf), all.data() + o, sizeof pf);
-    particle_loads[pf.block].push_back({pf.point, pf.force});
+  for (const auto& pf : gathered_on_root(comm, m.contact.recorded())) particle_loads[pf.block].push_back({pf.point, pf.force});
+  std::vector<std::vector<PointLoad>> bond_loads;
+  std::vector<double> bond_u_tension, bond_u_shear;
+  for (const auto& bf : gathered_on_root(comm, m.bonds.recorded())) {
+    if (bond_loads.size() <= bf.block) {
+      bond_loads.resize(bf.block + 1);
+      bond_u_tension.resize(bf.block + 1, 0.0);
+      bond_u_shear.resize(bf.block + 1, 0.0);
+    }
+    bond_loads[bf.block].push_back({bf.point, bf.force});
+    bond_u_tension[bf.block] = std::max(bond_u_tension[bf.block], bf.u_tension);
+    bond_u_shear[bf.block] = std::max(bond_u_shear[bf.block], bf.u_shear);
   }
   std::vector<rigid::BlockId> to_convert;
   std::vector<bool> by_freeze;
@@ -359,7 +382,17 @@ void HybridSystem::apply_policy() {
     loads.clear();
     for (const auto& c : world_->contact_forces(id)) loads.push_back({c.point, c.force});
     for (const auto& pf : particle_loads[k]) loads.push_back(pf);
-    const FreezeBondEstimate fe = freeze_bond_estimate(joints, strength);
+    FreezeBondEstimate fe = freeze_bond_estimate(joints, strength);
+    if (id.index < bond_loads.size()) {
+      for (const auto& bf : bond_loads[id.index]) loads.push_back(bf);
+      const double ut = bond_u_tension[id.index], us = bond_u_shear[id.index];
+      if (std::max(ut, us) > fe.utilisation) {  // a block-particle bond governs (no joint index)
+        fe.utilisation = std::max(ut, us);
+        fe.mode = ut >= us ? FreezeBondMode::Tension : FreezeBondMode::Shear;
+        fe.joint = FreezeBondEstimate::kNoJoint;
+        fe.stress = 0.0;
+      }
+    }
     const FlexureEstimate fl =
         flexure_estimate(BlockBox{half, x, world_->orientation(id)}, loads, m.def.flexural_strength);
     const BlockStress st = block_stress(fe, fl);

@@ -10,6 +10,8 @@
 #include "bridge/hybrid.h"
 #include "mesh/pier.h"
 
+#include <gtest/gtest.h>
+
 #include <cmath>
 #include <cstdint>
 #include <vector>
@@ -303,6 +305,24 @@ inline BendResult bend(bridge::ConversionMode mode, double flexural_strength, do
   out.ranks_with_particles = n[0];
   out.bonds_across_ranks = n[1];
   return out;
+}
+
+/// The bending test's criteria (issue 6), for a = all particles, b = hybrid, c = never: the
+/// hybrid beam converts while loaded and breaks within 10 % of the particle beam's break load;
+/// the rigid beam never breaks and its load only grows past that.
+inline void expect_bending_consistent(const BendResult& a, const BendResult& b, const BendResult& c) {
+  ASSERT_GT(a.break_time, 0.0) << "the particle beam must break";
+  EXPECT_EQ(a.sites_dropped, 0u);
+  EXPECT_EQ(b.conversions, 1u);
+  EXPECT_EQ(b.sites_dropped, 0u);
+  EXPECT_GT(b.load_at_conversion, 0.0) << "the beam must convert while loaded";
+  EXPECT_LT(b.load_at_conversion, a.peak);
+  EXPECT_GT(b.break_time, b.conversion_time);
+  EXPECT_LT(std::abs((b.peak - a.peak) / a.peak), 0.10);
+  EXPECT_EQ(c.conversions, 0u);
+  EXPECT_EQ(c.bonds_broken, 0u);
+  EXPECT_GT(c.final_load, a.peak) << "the rigid beam carries more than the particle beam broke at";
+  EXPECT_GE(c.final_load, c.peak) << "and its load only grows";
 }
 
 }  // namespace hs::test::hybrid

@@ -249,3 +249,89 @@ TEST(HybridPolicy, FreezeBondEstimateConvertsAtStrengthOverSafetyFactor) {
   EXPECT_NEAR(o.force / 4000.0, 1.0, 0.05);
   std::printf("[ hybrid ] outside the region: joint broke at %.1f N (4000 N), no conversion\n", o.force);
 }
+
+namespace {
+// A block hanging under a plate of frozen particles, frozen to it by block-particle bonds (an ice
+// joint over its top face), pulled down by a force ramped slowly at its centre: the bonds share
+// the pull equally, sigma = F / (n A_bond). Returns the pull when the block converted or when the
+// first bond broke, the bond count n and the bond area.
+struct BondPullResult {
+  double force = 0.0, bond_area = 0.0;
+  std::size_t bonds = 0;
+  bool converted = false, bond_broke = false;
+  std::uint64_t by_freeze = 0;
+};
+BondPullResult pull_bonds_until_conversion(double safety_factor) {
+  EngineDef ed = engine_def(false);
+  const double m = kRhoI * hcp_cell_volume(kD), I = 0.4 * m * 0.25 * kD * kD;
+  ed.bond[1] = ParallelBondParams::from_stiffness(ed.contact.kn, ed.contact.kn, 0.5 * kD, 2e5, 2e5, 0.3, 0.5 * m,
+                                                  0.5 * I);
+  Engine e(ed);
+  e.set_dt(1e-4);
+  const double zf = 0.3 + 0.5 * kD + 1e-4;  // particle centres just above the block's top face (z = 0.3)
+  for (int i = -2; i <= 2; ++i)
+    for (int j = -2; j <= 2; ++j) {
+      ParticleInit p;
+      p.x = Vec3(i * kD, j * kD, zf);
+      p.radius = 0.5 * kD;
+      p.mass = m;
+      p.flags = kFlagFrozen;
+      e.add_particle(p);
+    }
+  HybridDef d = dry_def();
+  d.world.gravity = Vec3::Zero();
+  d.safety_factor = safety_factor;
+  d.stress_time_constant = 0.0;
+  d.flexural_strength = 1e9;  // only the freeze-bond estimate can convert
+  d.region.shape = bridge::ConversionRegion::Shape::Box;
+  d.region.half_extents = Vec3(5, 5, 5);
+  bridge::IceJointInit ij;
+  ij.block = 0;
+  ij.anchor = Vec3(0, 0, 0.3);
+  ij.normal = Vec3::UnitZ();
+  ij.area = 0.3;  // a disc of radius 0.31 m: the centre particle and its 4 neighbours at 0.25 m
+  HybridSystem h(e, d, {block(Vec3(0.5, 0.5, 0.3), Vec3::Zero())}, {}, {ij});
+  const rigid::BlockId b = h.world()->blocks().at(0);
+  BondPullResult out;
+  out.bonds = h.block_particle_bonds();
+  out.bond_area = ed.bond[1].area();
+  const double rate = 2e5 * out.bond_area * static_cast<double>(out.bonds) / 2.0;  // bonds' strength in 2 s
+  for (int k = 0; k < 40000; ++k) {
+    if (!h.world()->alive(b)) {
+      out.converted = true;
+      break;
+    }
+    if (h.block_particle_bonds_broken() > 0 || e.stats().bonds_broken > 0) {
+      out.bond_broke = true;
+      break;
+    }
+    out.force = rate * e.time();
+    h.world()->clear_external_forces();
+    h.world()->add_force(b, Vec3(0, 0, -out.force), h.world()->position(b));
+    h.step();
+  }
+  out.by_freeze = h.report().conversions_freeze;
+  return out;
+}
+}  // namespace
+
+TEST(HybridPolicy, BlockParticleBondsCountInTheFreezeBondEstimate) {
+  // Safety factor 2: the block converts when its bonds to the particles carry half their
+  // strength, F = sigma_c n A_bond / 2; with a safety factor below 1 it never converts and the
+  // bonds break at their strength, F = sigma_c n A_bond.
+  const BondPullResult r = pull_bonds_until_conversion(2.0);
+  const double strength = 2e5 * r.bond_area * static_cast<double>(r.bonds);
+  std::printf("[ hybrid ] %zu block-particle bonds of %.4f m^2: converted at %.1f N (sigma_c n A / 2 = %.1f N), "
+              "ratio %.4f, by the freeze-bond estimate: %s\n",
+              r.bonds, r.bond_area, r.force, 0.5 * strength, r.force / (0.5 * strength), r.by_freeze ? "yes" : "no");
+  EXPECT_GT(r.bonds, 4u);
+  EXPECT_TRUE(r.converted);
+  EXPECT_EQ(r.by_freeze, 1u);
+  EXPECT_NEAR(r.force / (0.5 * strength), 1.0, 0.05);
+  const BondPullResult o = pull_bonds_until_conversion(0.5);
+  std::printf("[ hybrid ] safety factor 0.5: no conversion, first bond broke at %.1f N (sigma_c n A = %.1f N), ratio %.4f\n",
+              o.force, strength, o.force / strength);
+  EXPECT_FALSE(o.converted);
+  EXPECT_TRUE(o.bond_broke);
+  EXPECT_NEAR(o.force / strength, 1.0, 0.05);
+}

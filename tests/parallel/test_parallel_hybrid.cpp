@@ -13,6 +13,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <string>
+#include <utility>
 
 namespace hs::test {
 namespace {
@@ -31,8 +32,29 @@ bonded::EngineDef slab_def(double e = 0.1) {
   return d;
 }
 
-// A 4 m x 2 m x 2-layer bonded slab centred on x = 0 (the 2-rank cut), resting on a fixed floor
-// block, and a 1.0 x 0.6 x 0.4 m block tilted a little, 3 cm above the slab, straddling x = 0.
+// A 4 m x 2 m x 2-layer bonded slab centred on x = 0 (the 2-rank cut), its bottom at z = 0;
+// returns the z of its particles' lowest and highest surface points.
+std::pair<double, double> add_slab(bonded::Engine& e) {
+  const double c = bonded::hcp_layer_spacing(kD);
+  const std::size_t first = e.particles().size();
+  for (const Vec3& x : bonded::hcp_fill_box(Vec3(2.0, 1.0, c), bonded::Pose{Vec3(0, 0, c), Quat::Identity()}, kD)) {
+    bonded::ParticleInit p;
+    p.x = x;
+    p.radius = 0.5 * kD;
+    p.mass = kRhoI * bonded::hcp_cell_volume(kD);
+    e.add_particle(p);
+  }
+  e.bond_touching(first, e.particles().size(), bonded::BondKind::Lattice);
+  double z_bottom = INFINITY, z_top = -INFINITY;
+  for (std::size_t i = first; i < e.particles().size(); ++i) {
+    z_bottom = std::min(z_bottom, e.particles().x[i].z() - 0.5 * kD);
+    z_top = std::max(z_top, e.particles().x[i].z() + 0.5 * kD);
+  }
+  return {z_bottom, z_top};
+}
+
+// The slab resting on a fixed floor block, and a 1.0 x 0.6 x 0.4 m block tilted a little, 3 cm
+// above the slab, straddling x = 0.
 struct Setup {
   std::unique_ptr<bonded::Engine> engine;
   std::unique_ptr<HybridSystem> hyb;
@@ -42,22 +64,7 @@ Setup make(ConversionMode mode, bool distribute) {
   Setup s;
   s.engine = std::make_unique<bonded::Engine>(slab_def());
   bonded::Engine& e = *s.engine;
-  const double c = bonded::hcp_layer_spacing(kD);
-  const Vec3 half(2.0, 1.0, c);
-  const bonded::Pose pose{Vec3(0, 0, half.z()), Quat::Identity()};
-  for (const Vec3& x : bonded::hcp_fill_box(half, pose, kD)) {
-    bonded::ParticleInit p;
-    p.x = x;
-    p.radius = 0.5 * kD;
-    p.mass = kRhoI * bonded::hcp_cell_volume(kD);
-    e.add_particle(p);
-  }
-  e.bond_touching(0, e.particles().size(), bonded::BondKind::Lattice);
-  double z_bottom = INFINITY, z_top = -INFINITY;
-  for (std::size_t i = 0; i < e.particles().size(); ++i) {
-    z_bottom = std::min(z_bottom, e.particles().x[i].z() - 0.5 * kD);
-    z_top = std::max(z_top, e.particles().x[i].z() + 0.5 * kD);
-  }
+  const auto [z_bottom, z_top] = add_slab(e);
   HybridDef d = dry_hybrid(mode);
   d.flexural_strength = 2e3;  // converts as soon as the slab pushes back
   d.region.shape = bridge::ConversionRegion::Shape::Box;
@@ -235,20 +242,7 @@ FrozenPair make_frozen_pair(bool distribute) {
   FrozenPair r;
   r.e = std::make_unique<bonded::Engine>(slab_def());
   bonded::Engine& e = *r.e;
-  const double c = bonded::hcp_layer_spacing(kD);
-  for (const Vec3& x : bonded::hcp_fill_box(Vec3(2.0, 1.0, c), bonded::Pose{Vec3(0, 0, c), Quat::Identity()}, kD)) {
-    bonded::ParticleInit p;
-    p.x = x;
-    p.radius = 0.5 * kD;
-    p.mass = kRhoI * bonded::hcp_cell_volume(kD);
-    e.add_particle(p);
-  }
-  e.bond_touching(0, e.particles().size(), bonded::BondKind::Lattice);
-  double z_bottom = INFINITY, z_top = -INFINITY;
-  for (std::size_t i = 0; i < e.particles().size(); ++i) {
-    z_bottom = std::min(z_bottom, e.particles().x[i].z() - 0.5 * kD);
-    z_top = std::max(z_top, e.particles().x[i].z() + 0.5 * kD);
-  }
+  const auto [z_bottom, z_top] = add_slab(e);
   HybridDef d = dry_hybrid(ConversionMode::Never);  // converted by the test, at a set time
   std::vector<BlockInit> blocks(3);
   blocks[0].def.half_extents = Vec3(4, 3, 0.5);  // the floor

@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <utility>
 
 namespace hs::rigid {
 namespace {
@@ -16,13 +17,12 @@ struct BreakResult {
   bool broke = false;
 };
 
-// Block a (fixed) and block b (dynamic), 1 m cubes side by side along x with a 5 mm gap
-// (so that no contact shares the load), joined at the gap centre over area 1 m^2.
-// b is pulled by a force ramping at `rate` N/s along `dir`, applied at the anchor when
-// `at_anchor` (no moment on the joint), else at b's centre.
-BreakResult pull_until_break(const RigidWorldDef& def, const Vec3& dir, bool at_anchor,
-                             double rate) {
-  RigidWorld w(def);
+const Vec3 anchor(0.5025, 0, 0);
+
+// Block a (fixed) and block b (dynamic, 910 kg), 1 m cubes side by side along x with a 5 mm gap
+// (so that no contact shares the load), joined at the gap centre (`anchor`) over `area`.
+// Returns b and the joint.
+std::pair<BlockId, JointId> add_joined_pair(RigidWorld& w, double area) {
   BlockDef a;
   a.half_extents = Vec3(0.5, 0.5, 0.5);
   a.fixed = true;
@@ -31,8 +31,15 @@ BreakResult pull_until_break(const RigidWorldDef& def, const Vec3& dir, bool at_
   b.density = 910.0;
   b.position = Vec3(1.005, 0, 0);
   const BlockId ia = w.add_block(a), ib = w.add_block(b);
-  const Vec3 anchor(0.5025, 0, 0);
-  const JointId j = w.add_freeze_joint({ia, ib, anchor, Vec3::UnitX(), 1.0});
+  return {ib, w.add_freeze_joint({ia, ib, anchor, Vec3::UnitX(), area})};
+}
+
+// The pair of add_joined_pair; b is pulled by a force ramping at `rate` N/s along `dir`, applied at the anchor when
+// `at_anchor` (no moment on the joint), else at b's centre.
+BreakResult pull_until_break(const RigidWorldDef& def, const Vec3& dir, bool at_anchor,
+                             double rate) {
+  RigidWorld w(def);
+  const auto [ib, j] = add_joined_pair(w, 1.0);
   BreakResult r;
   while (w.time() < 10.0) {
     const double f = rate * (w.time() + def.dt);
@@ -135,18 +142,9 @@ TEST(RigidFreezeJoint, SpringJointHasTheStatedStiffnesses) {
   // F / (s A), bending and twisting M / (s I) and M / (2 s I), I = A^2 / (4 pi).
   const RigidWorldDef def = spring_world();
   const double A = 1.0, I = A * A / (4.0 * 3.14159265358979323846), F = 10e3, z0 = 0.4;
-  const Vec3 anchor(0.5025, 0, 0);
   for (int mode = 0; mode < 4; ++mode) {
     RigidWorld w(def);
-    BlockDef a;
-    a.half_extents = Vec3(0.5, 0.5, 0.5);
-    a.fixed = true;
-    BlockDef b = a;
-    b.fixed = false;
-    b.density = 910.0;
-    b.position = Vec3(1.005, 0, 0);
-    const BlockId ia = w.add_block(a), ib = w.add_block(b);
-    const JointId j = w.add_freeze_joint({ia, ib, anchor, Vec3::UnitX(), A});
+    const auto [ib, j] = add_joined_pair(w, A);
     const Vec3 c = w.position(ib);
     if (mode == 0) w.add_force(ib, Vec3(F, 0, 0), c);                  // stretch
     if (mode == 1) w.add_force(ib, Vec3(0, F, 0), anchor);             // shear, no moment
