@@ -110,14 +110,13 @@ struct RigidWorld::Impl {
   // I = A^2 / (4 pi) for a disc of area A. Damping c = 2 zeta sqrt(k m), m the reduced mass
   // (linear) or reduced inertia about the axis through the anchor (angular), as Bullet's spring
   // rows see them.
-  std::unique_ptr<btTypedConstraint> spring_joint(const BlockSlot& sa, const BlockSlot& sb, const FreezeJointDef& d) {
-    const btRigidBody& A = *sa.body;
-    const btRigidBody& B = *sb.body;
+  std::unique_ptr<btTypedConstraint> spring_joint(BlockSlot& sa, BlockSlot& sb, const FreezeJointDef& d) {
+    btRigidBody& A = *sa.body;
+    btRigidBody& B = *sb.body;
     const Vec3 n = d.normal.normalized();
     const Quat q = Quat::FromTwoVectors(Vec3::UnitX(), n);
     const btTransform frame(btQuaternion(q.x(), q.y(), q.z(), q.w()), to_bt(d.anchor));
-    auto c = std::make_unique<btGeneric6DofSpring2Constraint>(const_cast<btRigidBody&>(A), const_cast<btRigidBody&>(B),
-                                                              A.getWorldTransform().inverse() * frame,
+    auto c = std::make_unique<btGeneric6DofSpring2Constraint>(A, B, A.getWorldTransform().inverse() * frame,
                                                               B.getWorldTransform().inverse() * frame);
     c->setLinearLowerLimit(btVector3(1, 1, 1));
     c->setLinearUpperLimit(btVector3(-1, -1, -1));
