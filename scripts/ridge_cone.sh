@@ -2,8 +2,8 @@
 # The 8 m keel against the cone (scenes/ridge_keel_8m_cone.json), hybrid and full-particle.
 #   bash scripts/ridge_cone.sh [DURATION_S]    (default: the scene's 6 s; both runs use it)
 # Builds, makes the ridge file if missing (`hybridsim ridge`, ~1-4 min), runs the scene in hybrid
-# mode and with conversion = all_at_start (the full-particle reference: ~4x the particles, expect
-# ~10x the wall time), and plots both into out/. The run reports print wall time, peak particle
+# mode and with conversion = all_at_start (the full-particle reference: 2.7x the peak particle
+# count and 2.8x the wall time over the scene's 6 s, docs/bridge.md), and plots both into out/. The run reports print wall time, peak particle
 # count and conversion statistics side by side.
 set -euo pipefail
 cd "$(dirname "$0")/.."
