@@ -278,6 +278,7 @@ void write_analysis(const std::string& path, const AnalysisOut& a) {
         {"freeze_bonds_to_ice", static_cast<double>(r.ice_bonds_created)},
         {"freeze_bonds_from_joints", static_cast<double>(r.joints_to_bonds)},
         {"freeze_bonds_handed_over", static_cast<double>(r.block_bonds_handed_over)},
+        {"freeze_bonds_unmatched", static_cast<double>(r.block_bonds_unmatched)},
         {"freeze_bonds_broken", static_cast<double>(a.block_bonds_broken)},
     };
     for (const auto& [name, value] : figures) h5_attr(h.id, name, value);
@@ -741,7 +742,8 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
         << " s; " << hyb.world()->broken_joint_count() << " freeze joints broken\n";
     out << "  block-particle freeze bonds: " << r.ice_bonds_created << " at the start, " << r.joints_to_bonds
         << " made from joints of converted blocks, " << r.block_bonds_handed_over
-        << " handed over to particle bonds at conversions, " << hyb.block_particle_bonds_broken() << " broken\n";
+        << " handed over to particle bonds at conversions (" << r.block_bonds_unmatched
+        << " released with no new particle within 1.5 D), " << hyb.block_particle_bonds_broken() << " broken\n";
     out << "  conversions governed by: freeze bonds " << r.conversions_freeze << ", flexure " << r.conversions_flexure
         << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
         << "largest utilisation seen " << sci(r.max_utilisation, 3) << "; conversion KE change "

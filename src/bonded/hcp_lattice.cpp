@@ -88,9 +88,9 @@ std::size_t hcp_equalize_layers(std::vector<Vec3>& centres, const Pose& pose, do
   for (const auto& [k, v] : layers) n_min = std::min(n_min, v.size());
   const std::size_t removed = centres.size() - n_min * layers.size();
   centres.clear();
-  // Within a layer two sites are >= D/2 apart in x (different rows) or share a row's x and are
-  // >= D apart in y. Compare with a tolerance of D/8, not the raw coordinates: sites of one row
-  // differ in x only by the rounding of the rotation, and ordered by that noise the sort (so
+  // Within a layer two sites are >= D/2 apart in x, or share an x (a column: every other row)
+  // and are >= sqrt(3) D apart in y. Compare with a tolerance of D/8, not the raw coordinates:
+  // sites of one column differ in x only by the rounding of the rotation, and ordered by that noise the sort (so
   // which sites are trimmed, and the new particles' ids) would change with a 1e-16 change of the
   // pose, e.g. between a serial and an MPI run. (On such clustered values the tolerant order is
   // a strict weak order.)

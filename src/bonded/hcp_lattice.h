@@ -39,8 +39,10 @@ std::vector<Vec3> hcp_fill_prism(const std::vector<Eigen::Vector2d>& polygon, do
 /// layers; a solid block has the same area at every height, and with Column buoyancy the
 /// waterline layer's count sets the waterplane area, so unequal layers float off the solid's
 /// draft. The surplus is taken alternately from each layer's -x and +x ends (local frame).
-/// Returns the number of centres removed; the others keep their order within a layer, layers
-/// from bottom to top.
+/// Returns the number of centres removed; the others come out layer by layer from bottom to
+/// top, each layer sorted by local x, then y, compared with a tolerance of D/8 so that a pose
+/// differing by rounding gives the same order. Precondition: the centres are HCP sites of
+/// spacing D (as hcp_fill_box gives), so that within a layer x values differ by ~0 or >= D/2.
 std::size_t hcp_equalize_layers(std::vector<Vec3>& centres, const Pose& pose, double D);
 
 }  // namespace hs::bonded

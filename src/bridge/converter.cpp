@@ -172,7 +172,10 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   lat.bonds = touching_pairs(kept, std::vector<double>(kept.size(), r));
   lat.kind = BondKind::Lattice;
   // Attachments: each to the nearest kept site not yet bonded to the same particle (first in
-  // site order on a tie); the kept sites are the same on every rank, so is the choice.
+  // site order on a tie); the kept sites are the same on every rank, so is the choice. None when
+  // that site is more than 1.5 D from the attachment point (the sites there were dropped): a
+  // bond that long would not be a freeze bond, and under MPI it would widen every rank's halo.
+  std::size_t unattached = 0;
   {
     std::set<std::pair<GlobalId, std::uint32_t>> taken;
     for (const Attachment& a : attach) {
@@ -185,7 +188,10 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
           best = k;
         }
       }
-      if (!std::isfinite(best_d2)) continue;  // (every site already bonded to this particle)
+      if (!(best_d2 <= 2.25 * D * D)) {  // (also: every site already bonded to this particle)
+        ++unattached;
+        continue;
+      }
       taken.insert({a.particle, best});
       lat.attach.push_back({a.particle, best, BondKind::Freeze});
     }
@@ -197,6 +203,7 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   rep.first_gid = ins.first_gid;
   rep.bonds_created = ins.bonds_created;
   rep.bonds_attached = ins.attached;
+  rep.attachments_skipped = unattached;
   rep.orientation = pose.orientation.normalized();  // as the store keeps it
   rep.radius = r;
 

@@ -62,7 +62,8 @@ struct IceMaterial {
 
 /// An existing particle to freeze-bond (BondKind::Freeze, stress free) to the new particle
 /// nearest `point`, e.g. a block-particle bond that held the converted block, `point` its block
-/// end; a new particle already bonded to the same particle is passed over for the next nearest.
+/// end; a new particle already bonded to the same particle is passed over for the next nearest,
+/// and none is bonded when the nearest is more than 1.5 D from `point` (counted).
 struct Attachment {
   GlobalId particle = 0;
   Vec3 point = Vec3::Zero();  ///< world, m
@@ -79,9 +80,10 @@ struct ConversionReport {
   std::size_t sites_trimmed = 0;      ///< lattice sites trimmed to give every layer the same count
   std::size_t bonds_created = 0;     ///< lattice bonds among the new particles
   std::size_t bonds_attached = 0;    ///< freeze bonds made from the attachments
+  std::size_t attachments_skipped = 0;  ///< attachments with no kept site within 1.5 D
   GlobalId first_gid = 0;     ///< ids are first_gid, first_gid + 1, ... in lattice-site order
   /// The new particles as inserted, on every rank alike (whichever rank owns each): centre of
-  /// the particle with id first_gid + k, and the orientation, radius and material of all.
+  /// the particle with id first_gid + k, and the orientation and radius of all.
   std::vector<Vec3> sites;
   Quat orientation = Quat::Identity();
   double radius = 0.0;

@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstring>
+#include <stdexcept>
 #include <sstream>
 
 namespace hs::bridge {
@@ -144,6 +145,10 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   report_.blocks_initial = blocks.size();
   report_.peak_particles = static_cast<std::int64_t>(engine.particles().owned());
   if (blocks.empty()) return;  // no Bullet world
+  // The block-particle bonds made here are a list replicated on every rank; made after
+  // distribute() each rank would see only its own particles.
+  if (engine.parallel())
+    throw std::logic_error("HybridSystem: build it before Engine::distribute() (its freeze bonds are replicated)");
 
   // ---- the rigid step: the stability rule, then a whole number of DEM steps ----
   RigidStepInputs rs;
@@ -204,7 +209,8 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   if (!(wd.joint_erp > 0.0)) wd.joint_erp = erp_scaled;
   // Every block-block penetration is removed by split impulse (no momentum, no kinetic energy):
   // a ridge settled at another step rests with overlaps of several cm, and the erp push that
-  // removes those at this step would set the keel moving (docs/bridge.md).
+  // removes those at this step would set the keel moving (docs/bridge.md). (Replaces any value
+  // in def.world.)
   wd.split_impulse_depth = 0.0;
   // Freeze joints as springs with the stiffness per unit area of the particles' freeze bonds
   // (one bond of normal stiffness k_n per HCP cell face, sqrt(3)/2 D^2): a joint is as stiff as
@@ -320,7 +326,8 @@ void HybridSystem::step() {
 
 namespace {
 
-/// Every rank's records gathered on rank 0 (serial: a copy); trivially copyable T.
+/// Every rank's records gathered on rank 0 (serial: a copy). T is copied as bytes (plain
+/// records of integers, doubles and Eigen fixed-size vectors; its padding goes along unread).
 template <class T>
 std::vector<T> gathered_on_root(const par::Comm& comm, const std::vector<T>& rec) {
   par::Bytes mine(rec.size() * sizeof(T));
@@ -387,10 +394,11 @@ void HybridSystem::apply_policy() {
       for (const auto& bf : bond_loads[id.index]) loads.push_back(bf);
       const double ut = bond_u_tension[id.index], us = bond_u_shear[id.index];
       if (std::max(ut, us) > fe.utilisation) {  // a block-particle bond governs (no joint index)
+        const auto& fb = engine_.def().bond[static_cast<int>(bonded::BondKind::Freeze)];
         fe.utilisation = std::max(ut, us);
         fe.mode = ut >= us ? FreezeBondMode::Tension : FreezeBondMode::Shear;
         fe.joint = FreezeBondEstimate::kNoJoint;
-        fe.stress = 0.0;
+        fe.stress = ut >= us ? ut * fb.sigma_c : us * fb.tau_c;
       }
     }
     const FlexureEstimate fl =
@@ -442,6 +450,12 @@ void HybridSystem::apply_policy() {
 
 ConversionReport HybridSystem::convert(rigid::BlockId id) {
   Impl& m = *impl_;
+  // Collective under MPI (every rank converts the same block). The bond list must be the same on
+  // every rank before the hand-over reads it: a bond broken since the last rigid step is so far
+  // marked on its particle's owner only. And the blocks' poses the bonds see are brought to now
+  // (after a rigid step: the world's own), so that bonds made below start stress free.
+  m.bonds_broken_synced += m.bonds.sync_broken(engine_.comm());
+  m.extrapolate(engine_.time());
   BlockState b;
   b.half_extents = world_->half_extents(id);
   b.pose.position = world_->position(id);
@@ -476,6 +490,7 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
   const ConversionReport r = convert_block(engine_, b, m.def.ice, inside_other, attach);
   m.bonds.release_block(id.index);
   report_.block_bonds_handed_over += r.bonds_attached;
+  report_.block_bonds_unmatched += r.attachments_skipped;
   const std::vector<rigid::JointId> joints = world_->joints_of(id);
   for (const rigid::JointId j : joints) {
     const rigid::FreezeJointDef jd = world_->joint_def(j);

@@ -84,6 +84,7 @@ struct HybridReport {
   double kinetic_energy_change = 0.0;     ///< sum over conversions of KE after - before, J
   std::uint64_t ice_bonds_created = 0;    ///< block-particle freeze bonds made at the start
   std::uint64_t block_bonds_handed_over = 0;  ///< block-particle bonds that became particle bonds
+  std::uint64_t block_bonds_unmatched = 0;    ///< ... released with no new particle within 1.5 D
   std::uint64_t joints_to_bonds = 0;      ///< block-particle bonds made from joints of converted blocks
 };
 
@@ -158,7 +159,8 @@ class HybridSystem {
   /// Per structure part (same parts as the engine's mesh wall); empty without blocks.
   const std::vector<Vec3>& structure_part_force() const;
   const std::vector<Vec3>& structure_part_moment() const;
-  /// Intact block-particle freeze bonds (this rank) and how many broke (all ranks, synced).
+  /// Block-particle freeze bonds in the replicated list (intact as of the last rigid step's
+  /// sync, the same on every rank) and how many broke (all ranks, synced).
   std::size_t block_particle_bonds() const;
   std::uint64_t block_particle_bonds_broken() const;
   /// Elastic energy in particle-block contacts and block-particle bonds (this rank), J.

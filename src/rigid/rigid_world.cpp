@@ -137,7 +137,10 @@ struct RigidWorld::Impl {
                               : reduced(inertia(A, R.col(k - 3)), inertia(B, R.col(k - 3)));
       c->enableSpring(k, true);
       c->setStiffness(k, kk);
-      c->setDamping(k, 2.0 * def.joint_damping_ratio * std::sqrt(kk * me));
+      // Damped for the stiffness Bullet will use: it softens a spring to m / (16 dt^2) when
+      // omega dt > 0.25 (small blocks at the hybrid's step), which would raise the ratio.
+      const double k_used = std::min(kk, me / (16.0 * def.dt * def.dt));
+      c->setDamping(k, 2.0 * def.joint_damping_ratio * std::sqrt(k_used * me));
     }
     c->setEquilibriumPoint();
     return c;

@@ -238,12 +238,23 @@ struct FrozenPair {
   std::unique_ptr<HybridSystem> h;
 };
 
-FrozenPair make_frozen_pair(bool distribute) {
+// `pulled`: the policy runs (Hybrid mode, flexure out of play) with freeze bonds of strength
+// 1e5 Pa and safety factor 2; otherwise nothing converts unless the test says so.
+FrozenPair make_frozen_pair(bool distribute, bool pulled = false) {
   FrozenPair r;
-  r.e = std::make_unique<bonded::Engine>(slab_def());
+  bonded::EngineDef ed = slab_def();
+  if (pulled) ed.bond[static_cast<int>(bonded::BondKind::Freeze)].sigma_c =
+      ed.bond[static_cast<int>(bonded::BondKind::Freeze)].tau_c = 1e5;
+  r.e = std::make_unique<bonded::Engine>(ed);
   bonded::Engine& e = *r.e;
   const auto [z_bottom, z_top] = add_slab(e);
-  HybridDef d = dry_hybrid(ConversionMode::Never);  // converted by the test, at a set time
+  HybridDef d = dry_hybrid(pulled ? ConversionMode::Hybrid : ConversionMode::Never);
+  if (pulled) {
+    d.flexural_strength = 1e12;
+    d.safety_factor = 2.0;
+    d.region.shape = bridge::ConversionRegion::Shape::Box;
+    d.region.half_extents = Vec3(10, 10, 10);
+  }
   std::vector<BlockInit> blocks(3);
   blocks[0].def.half_extents = Vec3(4, 3, 0.5);  // the floor
   blocks[0].def.position = Vec3(0, 0, z_bottom - 0.5);
@@ -333,6 +344,45 @@ TEST(ParallelHybrid, FreezeBondsOfAConvertedBlockCarryOverAsInSerial) {
   EXPECT_TRUE(same_bonds);
   EXPECT_LT(dx, 1e-9);
   EXPECT_LT(dblock, 1e-9);
+}
+
+TEST(ParallelHybrid, BlockParticleBondStressesFromEveryRankDecideAsInSerial) {
+  // The frozen pair, A pulled up by a force ramped at 50 kN/s: the policy gathers A's bond
+  // stresses from the ranks that own its bonded particles (A straddles the cut at 2 ranks) and
+  // converts it, by the freeze-bond estimate, when a bond reaches half its strength (safety
+  // factor 2): at the same step as the serial copy.
+  FrozenPair ser = make_frozen_pair(false, true), dis = make_frozen_pair(true, true);
+  const rigid::BlockId as = ser.h->world()->blocks().at(1), ad = dis.h->world()->blocks().at(1);
+  const double strength = 1e5 * dis.e->def().bond[static_cast<int>(bonded::BondKind::Freeze)].area();
+  long step_s = -1, step_d = -1;
+  double pull_d = 0.0;
+  for (long k = 0; k < 10000 && (step_s < 0 || step_d < 0); ++k) {
+    const double f = 5e4 * ser.e->time();
+    for (FrozenPair* p : {&ser, &dis}) {
+      const rigid::BlockId a = p == &ser ? as : ad;
+      p->h->world()->clear_external_forces();
+      if (p->h->world()->alive(a)) p->h->world()->add_force(a, Vec3(0, 0, f), p->h->world()->position(a));
+      p->h->step();
+    }
+    if (step_s < 0 && !ser.h->world()->alive(as)) step_s = k;
+    if (step_d < 0 && !dis.h->world()->alive(ad)) {
+      step_d = k;
+      pull_d = f;
+    }
+  }
+  const auto& rd = dis.h->report();
+  if (world().rank() == 0)
+    std::printf("[ mpi hybrid ] pulled frozen block, %d ranks: converted at step %ld (serial %ld) under %.1f N "
+                "(one bond's strength %.1f N), by freeze bonds: %llu; largest utilisation %.6f (serial %.6f)\n",
+                world().size(), step_d, step_s, pull_d, strength,
+                static_cast<unsigned long long>(rd.conversions_freeze), rd.max_utilisation,
+                ser.h->report().max_utilisation);
+  EXPECT_GE(step_d, 0) << "the pulled block must convert";
+  EXPECT_EQ(step_d, step_s);
+  EXPECT_EQ(rd.conversions_freeze, 1u);
+  EXPECT_EQ(ser.h->report().conversions_freeze, 1u);
+  EXPECT_GE(rd.max_utilisation, 0.5);
+  EXPECT_NEAR(rd.max_utilisation, ser.h->report().max_utilisation, 1e-9);  // (round-off apart)
 }
 
 }  // namespace

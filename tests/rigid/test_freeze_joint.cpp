@@ -139,37 +139,52 @@ TEST(RigidFreezeJoint, SpringJointBreaksAtStrengthInTensionAndShear) {
 TEST(RigidFreezeJoint, SpringJointHasTheStatedStiffnesses) {
   // Block b joined to fixed block a over 1 m^2 (1 m cubes, 5 mm gap); a static load held 2 s
   // (damping ratio 0.5: many periods) deflects the joint by load / stiffness: stretch and shear
-  // F / (s A), bending and twisting M / (s I) and M / (2 s I), I = A^2 / (4 pi).
+  // F / (s A), bending and twisting M / (s I) and M / (2 s I), I = A^2 / (4 pi). The pair lies
+  // along x, then turned by an oblique rotation Q (blocks, anchor, normal and loads alike): the
+  // joint's frame must follow its normal.
   const RigidWorldDef def = spring_world();
   const double A = 1.0, I = A * A / (4.0 * 3.14159265358979323846), F = 10e3, z0 = 0.4;
-  for (int mode = 0; mode < 4; ++mode) {
-    RigidWorld w(def);
-    const auto [ib, j] = add_joined_pair(w, A);
-    const Vec3 c = w.position(ib);
-    if (mode == 0) w.add_force(ib, Vec3(F, 0, 0), c);                  // stretch
-    if (mode == 1) w.add_force(ib, Vec3(0, F, 0), anchor);             // shear, no moment
-    if (mode == 2) {                                                   // bending couple about y
-      w.add_force(ib, Vec3(F, 0, 0), c + Vec3(0, 0, -z0));
-      w.add_force(ib, Vec3(-F, 0, 0), c + Vec3(0, 0, z0));
+  const Quat turns[2] = {Quat::Identity(), Quat(Eigen::AngleAxisd(1.1, Vec3(0.3, -0.5, 0.8).normalized()))};
+  for (const Quat& Q : turns)
+    for (int mode = 0; mode < 4; ++mode) {
+      RigidWorld w(def);
+      BlockDef a;
+      a.half_extents = Vec3(0.5, 0.5, 0.5);
+      a.orientation = Q;
+      a.fixed = true;
+      BlockDef b = a;
+      b.fixed = false;
+      b.density = 910.0;
+      b.position = Q * Vec3(1.005, 0, 0);
+      const BlockId ia = w.add_block(a), ib = w.add_block(b);
+      const JointId j = w.add_freeze_joint({ia, ib, Q * anchor, Q * Vec3::UnitX(), A});
+      const Vec3 c = w.position(ib), ex = Q * Vec3::UnitX(), ey = Q * Vec3::UnitY(), ez = Q * Vec3::UnitZ();
+      if (mode == 0) w.add_force(ib, F * ex, c);         // stretch
+      if (mode == 1) w.add_force(ib, F * ey, Q * anchor);  // shear, no moment
+      if (mode == 2) {                                     // bending couple about the frame's y
+        w.add_force(ib, F * ex, c - z0 * ez);
+        w.add_force(ib, -F * ex, c + z0 * ez);
+      }
+      if (mode == 3) {  // twisting couple about the normal
+        w.add_force(ib, F * ey, c - z0 * ez);
+        w.add_force(ib, -F * ey, c + z0 * ez);
+      }
+      w.step(2.0);
+      ASSERT_FALSE(w.joint_broken(j));
+      const Vec3 d = Q.conjugate() * (w.position(ib) - c);
+      const Quat turn = w.orientation(ib) * Q.conjugate();  // b's rotation since the start
+      const double angle = 2.0 * std::asin(std::min(1.0, turn.vec().norm()));
+      const double M = 2.0 * F * z0;
+      const char* names[4] = {"stretch", "shear", "bending", "twist"};
+      const double got[4] = {d.x(), d.y(), angle, angle};
+      const double want[4] = {F / (def.joint_stiffness * A), F / (def.joint_stiffness * A),
+                              M / (def.joint_stiffness * I), M / (2.0 * def.joint_stiffness * I)};
+      std::printf("[ rigid ] spring joint %s (%s frame): %.4e (expected %.4e), ratio %.4f; speed %.1e m/s\n",
+                  names[mode], Q.isApprox(Quat::Identity()) ? "world" : "oblique", got[mode], want[mode],
+                  got[mode] / want[mode], w.velocity(ib).norm());
+      EXPECT_NEAR(got[mode] / want[mode], 1.0, 0.02);
+      EXPECT_LT(w.velocity(ib).norm(), 1e-4) << "damped to rest";
     }
-    if (mode == 3) {                                                   // twisting couple about x
-      w.add_force(ib, Vec3(0, F, 0), c + Vec3(0, 0, -z0));
-      w.add_force(ib, Vec3(0, -F, 0), c + Vec3(0, 0, z0));
-    }
-    w.step(2.0);
-    ASSERT_FALSE(w.joint_broken(j));
-    const Vec3 d = w.position(ib) - c;
-    const double angle = 2.0 * std::asin(std::min(1.0, w.orientation(ib).vec().norm()));
-    const double M = 2.0 * F * z0;
-    const char* names[4] = {"stretch", "shear", "bending", "twist"};
-    const double got[4] = {d.x(), d.y(), angle, angle};
-    const double want[4] = {F / (def.joint_stiffness * A), F / (def.joint_stiffness * A), M / (def.joint_stiffness * I),
-                            M / (2.0 * def.joint_stiffness * I)};
-    std::printf("[ rigid ] spring joint %s: %.4e (expected %.4e), ratio %.4f; speed %.1e m/s\n", names[mode],
-                got[mode], want[mode], got[mode] / want[mode], w.velocity(ib).norm());
-    EXPECT_NEAR(got[mode] / want[mode], 1.0, 0.02);
-    EXPECT_LT(w.velocity(ib).norm(), 1e-4) << "damped to rest";
-  }
 }
 
 TEST(RigidFreezeJoint, RemovedWithItsBlock) {
