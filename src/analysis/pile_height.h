@@ -7,7 +7,7 @@
 // above the waterline there.
 #pragma once
 
-#include "bonded/types.h"
+#include "common/types.h"
 
 #include <cstddef>
 

@@ -30,7 +30,7 @@
 // The bond breaks when sigma > sigma_c or tau > tau_c; its force is then removed.
 #pragma once
 
-#include "types.h"
+#include "common/types.h"
 
 #include <cmath>
 

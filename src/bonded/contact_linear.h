@@ -21,7 +21,7 @@
 // Output: force on j (the force on i is its negative).
 #pragma once
 
-#include "types.h"
+#include "common/types.h"
 
 #include <cmath>
 

@@ -8,7 +8,7 @@
 // the lattice to weigh and float like the solid ice it stands for.
 #pragma once
 
-#include "types.h"
+#include "common/types.h"
 
 #include <vector>
 

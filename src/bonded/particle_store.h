@@ -11,7 +11,7 @@
 // travel with their particles between ranks.
 #pragma once
 
-#include "types.h"
+#include "common/types.h"
 
 #include <algorithm>
 #include <unordered_map>

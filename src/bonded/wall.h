@@ -6,7 +6,7 @@
 // The force on the wall (minus the sum of the forces it exerts) is tallied per step.
 #pragma once
 
-#include "types.h"
+#include "common/types.h"
 
 #include <string>
 

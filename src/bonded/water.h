@@ -19,7 +19,7 @@
 // c_lin (N s/m per particle) is the linear term that damps heave; C_d the quadratic one.
 #pragma once
 
-#include "types.h"
+#include "common/types.h"
 
 #include <algorithm>
 

@@ -30,7 +30,7 @@
 // Units: SI (m, N, Pa).
 #pragma once
 
-#include "bonded/types.h"
+#include "common/types.h"
 
 #include <cstddef>
 #include <span>

@@ -12,7 +12,7 @@
 // separately) so neighbouring triangles share edges and vertices.
 #pragma once
 
-#include "bonded/types.h"
+#include "common/types.h"
 
 #include <array>
 #include <cstdint>

@@ -9,7 +9,7 @@
 // slices, an approximation that is good when cost is roughly separable (docs/parallel.md).
 #pragma once
 
-#include "bonded/types.h"
+#include "common/types.h"
 
 #include <array>
 #include <vector>

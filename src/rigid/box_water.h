@@ -34,7 +34,7 @@
 // damped by the same traction since u varies over the face.
 #pragma once
 
-#include "bonded/types.h"
+#include "common/types.h"
 
 #include <algorithm>
 #include <array>

@@ -21,7 +21,7 @@
 // B = L u, u ~ U(width_fraction_min, width_fraction_max); ln r is truncated at mu +- 4 sigma.
 #pragma once
 
-#include "bonded/types.h"
+#include "common/types.h"
 
 #include <nlohmann/json.hpp>
 

@@ -15,7 +15,7 @@
 // Units: SI (m, kg, s, N, Pa).
 #pragma once
 
-#include "bonded/types.h"
+#include "common/types.h"
 
 #include <array>
 #include <cstdint>

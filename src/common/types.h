@@ -1,4 +1,6 @@
-// Basic types shared by the bonded-particle engine. SI units throughout.
+// Basic types shared by every module (vectors, quaternions, ids). SI units throughout.
+// Lives in common/ so that lower layers (mesh, rigid, parallel, analysis) need not include
+// the particle engine for a vector type.
 #pragma once
 
 #include <Eigen/Core>
