@@ -1,6 +1,8 @@
 // RunFile: see run_file.h for the layout, the durability rule and the MPI notes.
 #include "io/run_file.h"
 
+#include "io/h5_handle.h"
+
 #include <hdf5.h>
 #include <unistd.h>
 
@@ -23,64 +25,10 @@
 namespace hs::io {
 namespace {
 
+using h5::Handle;
+using h5::fail;
+
 // ---------------------------------------------------------------- HDF5 plumbing
-
-/// Owns one HDF5 identifier; closes it with the matching H5?close.
-class Handle {
- public:
-  using Closer = herr_t (*)(hid_t);
-  Handle() = default;
-  Handle(hid_t id, Closer closer) : id_(id), closer_(closer) {}
-  Handle(Handle&& o) noexcept : id_(std::exchange(o.id_, H5I_INVALID_HID)), closer_(o.closer_) {}
-  Handle& operator=(Handle&& o) noexcept {
-    if (this != &o) {
-      reset();
-      id_ = std::exchange(o.id_, H5I_INVALID_HID);
-      closer_ = o.closer_;
-    }
-    return *this;
-  }
-  Handle(const Handle&) = delete;
-  Handle& operator=(const Handle&) = delete;
-  ~Handle() { reset(); }
-  hid_t get() const { return id_; }
-  bool valid() const { return id_ >= 0; }
-  /// Gives up ownership without closing.
-  hid_t release() { return std::exchange(id_, H5I_INVALID_HID); }
-  void reset() {
-    if (id_ >= 0 && closer_ != nullptr) closer_(id_);
-    id_ = H5I_INVALID_HID;
-  }
-
- private:
-  hid_t id_ = H5I_INVALID_HID;
-  Closer closer_ = nullptr;
-};
-
-herr_t collect_error(unsigned n, const H5E_error2_t* err, void* out) {
-  auto& text = *static_cast<std::string*>(out);
-  if (n >= 4) return 0;  // the outermost few frames say enough
-  if (!text.empty()) text += "; ";
-  text += err->func_name ? err->func_name : "?";
-  text += ": ";
-  text += err->desc ? err->desc : "?";
-  return 0;
-}
-
-/// The current HDF5 error stack as one line, then cleared.
-std::string error_stack_text() {
-  std::string text;
-  H5Ewalk2(H5E_DEFAULT, H5E_WALK_DOWNWARD, collect_error, &text);
-  H5Eclear2(H5E_DEFAULT);
-  return text;
-}
-
-[[noreturn]] void fail(const char* call, const std::string& object, const std::string& file) {
-  std::string msg = std::string("HDF5 ") + call + " failed for '" + object + "' in '" + file + "'";
-  const std::string detail = error_stack_text();
-  if (!detail.empty()) msg += " (" + detail + ")";
-  throw std::runtime_error(msg);
-}
 
 enum class Elem { f64, i64, i32 };
 
@@ -536,7 +484,7 @@ RunFile::RunFile(const std::string& path, RunFileMeta meta) : impl_(std::make_un
   m.check(H5Pset_file_locking(fapl.get(), 1, 1), "H5Pset_file_locking", "/");
   const hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
   if (f < 0) {
-    const std::string detail = error_stack_text();
+    const std::string detail = h5::error_stack_text();
     throw InputError(path,
                      "cannot create the HDF5 output file; check that the directory exists and is "
                      "writable, and that no other program has the file open" +

@@ -1,22 +1,22 @@
 // Scenes: the JSON file a user writes, read into plain definition structs.
 //
 // Flow:  text --parse_json_text--> json --apply_override (--set)--> json
-//            --parse_scene (validates everything, once)--> Scene --build_engine--> Engine
+//            --parse_scene (validates everything, once)--> Scene
+// A Scene is definitions only; sim::build_simulation (src/sim) builds the engine, the structure
+// and the blocks from it.
 // Every problem is an hs::InputError whose path is the JSON pointer of the offending value
 // ("/ice/thickness") and whose message gives the bad value, what is allowed and the fix.
 // Unknown keys are errors with a did-you-mean suggestion. Fields, units and defaults:
 // docs/scene.md; JSON Schema for editors: docs/scene.schema.json.
 #pragma once
 
-#include "analysis/iso19906.h"
-#include "bonded/engine.h"
+#include "bonded/engine.h"  // bonded::ContactModel only (moves to src/common with the contact-law dispatch)
+#include "common/types.h"
 #include "mesh/pier.h"
-#include "mesh/tri_mesh.h"
 
 #include <nlohmann/json.hpp>
 
 #include <array>
-#include <memory>
 #include <string>
 #include <vector>
 
@@ -208,44 +208,5 @@ Scene load_scene_file(const std::string& path, const std::vector<std::string>& o
 /// The keys allowed in the object at `pointer` ("" root, "/ice", "/walls/0", ...); empty
 /// if `pointer` is not an object in the schema. Used for unknown-key checks and --set.
 const std::vector<std::string>& allowed_keys(const std::string& pointer);
-
-// ---- building ----
-/// Engine settings of the scene (contact and bond laws, water, gravity, limits, dt).
-bonded::EngineDef engine_def(const Scene& s);
-
-struct IceLayout {
-  std::size_t layers = 0;               ///< level-ice layers
-  std::size_t consolidated_layers = 0;  ///< 0 without a consolidated layer
-  double bottom_z = 0.0;                ///< level ice bottom, m
-  double top_z = 0.0;                   ///< level ice top, m
-};
-/// Layer counts and floating position of the ice sheet.
-IceLayout ice_layout(const Scene& s);
-
-struct Built {
-  std::unique_ptr<bonded::Engine> engine;
-  std::size_t particles = 0;
-  std::size_t bonds = 0;
-  IceLayout layout;
-  int structure = -1;                   ///< mesh wall index of the structure; -1 without one
-  double structure_radius = 0.0;        ///< see structure_radius()
-  std::vector<std::string> structure_parts;
-};
-// ---- structure ----
-/// The structure's mesh in its own frame (make_pier or the loaded file). InputError at
-/// /structure/mesh if the file cannot be read.
-mesh::TriMesh structure_mesh(const Scene& s);
-/// Horizontal radius of the structure's widest section (pier: the cone base radius; mesh:
-/// half the larger horizontal bounding-box side), m.
-double structure_radius(const Scene& s, const mesh::TriMesh& m);
-/// ISO 19906 inputs for the scene's ice and pier (docs/scene.md, "analysis"): thickness of
-/// the consolidated layer if there is one, else of the level ice; E, nu, densities, g from the
-/// scene; waterline diameter and cone angle from the pier; mu = structure friction.
-/// InputError at /structure when the scene has no parametric pier.
-analysis::IsoInputs iso_inputs(const Scene& s, double rubble_height);
-
-/// Builds the engine: bonded HCP ice floating at equilibrium, walls, the structure. With check_dt the time
-/// step is checked against the critical step (InputError at "/time/dt" if too large).
-Built build_engine(const Scene& s, bool check_dt = true);
 
 }  // namespace hs::scene

@@ -3,6 +3,7 @@
 #include "bonded/hcp_lattice.h"
 #include "common/error.h"
 #include "scene/scene.h"
+#include "sim/build.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -77,7 +78,7 @@ TEST(Scene, DefaultsFromAMinimalScene) {
   EXPECT_EQ(s.stability.max_overlap_ratio, 0.5);
   EXPECT_TRUE(s.warnings.empty());
 
-  const auto d = scene::engine_def(s);
+  const auto d = sim::engine_def(s);
   EXPECT_DOUBLE_EQ(d.contact.kn, kPi * 1e9 * 0.5 / 12.0);
   EXPECT_DOUBLE_EQ(d.bond[0].radius, 0.25);
   EXPECT_EQ(d.bond[0].sigma_c, 0.6e6);
@@ -88,7 +89,7 @@ TEST(Scene, BuiltSheetFloatsAtEquilibrium) {
   json j = minimal();
   j["water"]["linear_drag"] = 5.0;
   const scene::Scene s = scene::parse_scene(j);
-  scene::Built b = scene::build_engine(s);
+  sim::Built b = sim::build_engine(s);
   const double D = 0.5, c = bonded::hcp_layer_spacing(D);
   EXPECT_EQ(b.layout.layers, 4u);  // round(1.5 / 0.408)
   EXPECT_GT(b.particles, 40u);
@@ -121,9 +122,9 @@ TEST(Scene, BuiltSheetFloatsAtEquilibrium) {
 TEST(Scene, ConsolidatedLayerAddsBondedLayers) {
   json j = minimal();
   j["ice"]["length"] = 6;
-  const auto n0 = scene::build_engine(scene::parse_scene(j)).particles;
+  const auto n0 = sim::build_engine(scene::parse_scene(j)).particles;
   j["ice"]["consolidated_layer"] = {{"thickness", 2.4}, {"width", 2.0}, {"center_x", 3.0}};
-  scene::Built b = scene::build_engine(scene::parse_scene(j));
+  sim::Built b = sim::build_engine(scene::parse_scene(j));
   EXPECT_GT(b.layout.consolidated_layers, b.layout.layers);
   EXPECT_GT(b.particles, n0);
   // One connected lattice: every particle keeps at least 3 bonds.
@@ -223,7 +224,7 @@ TEST(SceneErrors, UnstableTimeStepNamesTimeDt) {
   json j = minimal();
   j["time"]["dt"] = 1e-2;
   const scene::Scene s = scene::parse_scene(j);
-  expect_error([&] { scene::build_engine(s); }, "/time/dt", "stable limit");
+  expect_error([&] { sim::build_engine(s); }, "/time/dt", "stable limit");
 }
 
 TEST(SceneErrors, FilesAndJsonSyntax) {
@@ -312,13 +313,13 @@ TEST(SceneStructure, DefaultsAndBuild) {
                             {"neck_height", 0.5}, {"shaft_diameter", 1.5}, {"shaft_bottom_z", -3.0}};
   j["structure"]["position"] = {-5.0, 1.5, 0.0};
   const scene::Scene s2 = scene::parse_scene(j);
-  scene::Built b = scene::build_engine(s2);
+  sim::Built b = sim::build_engine(s2);
   ASSERT_EQ(b.structure, 0);
   EXPECT_EQ(b.structure_parts, (std::vector<std::string>{"neck", "cone", "shaft"}));
   EXPECT_NEAR(b.structure_radius, 1.0 + 1.0 / std::tan(52.0 * kPi / 180.0), 1e-12);
   EXPECT_EQ(b.engine->mesh_wall_position(0), Vec3(-5.0, 1.5, 0.0));
 
-  const auto in = scene::iso_inputs(s2, 1.25);
+  const auto in = sim::iso_inputs(s2, 1.25);
   EXPECT_EQ(in.waterline_diameter, 2.0);
   EXPECT_EQ(in.thickness, 1.5);
   EXPECT_EQ(in.rubble_height, 1.25);
@@ -327,8 +328,8 @@ TEST(SceneStructure, DefaultsAndBuild) {
   EXPECT_EQ(in.friction_ice_ice, 0.3);
   j["ice"]["length"] = 6;
   j["ice"]["consolidated_layer"] = {{"thickness", 2.4}, {"width", 2.0}};
-  EXPECT_EQ(scene::iso_inputs(scene::parse_scene(j), 0).thickness, 2.4);
-  expect_error([] { scene::iso_inputs(scene::parse_scene(minimal()), 0); }, "/structure", "needs a cone");
+  EXPECT_EQ(sim::iso_inputs(scene::parse_scene(j), 0).thickness, 2.4);
+  expect_error([] { sim::iso_inputs(scene::parse_scene(minimal()), 0); }, "/structure", "needs a cone");
 }
 
 TEST(SceneStructure, Errors) {
@@ -400,9 +401,9 @@ TEST(SceneStructure, MeshFileRelativeToTheSceneFile) {
   std::ofstream(d / "s.json") << j.dump();
   const scene::Scene s = scene::load_scene_file((d / "s.json").string());
   EXPECT_EQ(s.structure.mesh_path, (d / "meshes" / "p.stl").string());
-  scene::Built b = scene::build_engine(s);
+  sim::Built b = sim::build_engine(s);
   EXPECT_EQ(b.structure_parts, (std::vector<std::string>{"neck", "cone", "shaft"}));
   EXPECT_NEAR(b.structure_radius, mesh::pier_cone_radius(pp, -1.0), 1e-9);
-  expect_error([&] { scene::iso_inputs(s, 0); }, "/structure/type", "parametric pier");
+  expect_error([&] { sim::iso_inputs(s, 0); }, "/structure/type", "parametric pier");
   fs::remove_all(d);
 }

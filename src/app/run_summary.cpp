@@ -1,0 +1,148 @@
+#include "app/run_summary.h"
+
+#include "app/text.h"
+#include "parallel/comm.h"
+
+#include <algorithm>
+#include <vector>
+
+namespace hs::app {
+
+RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Simulation& sim, double setup_s,
+                      const par::Comm& comm) {
+  const auto& e = sim.engine();
+  const RunCounts n{static_cast<long long>(e.global_particle_count()), static_cast<long long>(e.global_bond_count())};
+  std::fprintf(progress,
+               "hybridsim: %s: %lld particles, %lld bonds, %zu walls; dt = %.4g s, %llu steps to t = %g s "
+               "(setup %.1f s)\n",
+               s.name.c_str(), n.particles, n.bonds, s.walls.size(), e.dt(),
+               static_cast<unsigned long long>(sim.schedule().total_steps), s.time.duration, setup_s);
+  if (sim.has_blocks()) {
+    const auto& r = sim.hybrid().report();
+    const auto& b = sim.blocks();
+    std::fprintf(progress,
+                 "hybridsim: %zu rigid blocks (%zu freeze joints), conversion \"%s\"; rigid step %.4g s = %llu DEM "
+                 "steps (stability limit %.4g s)\n",
+                 r.blocks_initial, b.joints.size(), bridge::to_string(b.def.mode), r.rigid_dt,
+                 static_cast<unsigned long long>(r.steps_per_rigid_step), r.rigid_dt_limit);
+    if (r.blocks_moved_clear)
+      std::fprintf(progress, "hybridsim: %zu blocks started overlapping the particles and were moved clear (at most %.3g m)\n",
+                   r.blocks_moved_clear, r.max_clearing_shift);
+    if (!b.ice_joints.empty())
+      std::fprintf(progress, "hybridsim: %zu ridge joints to the ice sheet became %llu block-particle freeze bonds\n",
+                   b.ice_joints.size(), static_cast<unsigned long long>(r.ice_bonds_created));
+  }
+  if (comm.parallel()) {
+    const auto& g = e.decomposition().dims();
+    std::fprintf(progress, "hybridsim: %d MPI ranks, boxes %d x %d x %d, load balance every %llu steps by %s\n",
+                 comm.size(), g[0], g[1], g[2], static_cast<unsigned long long>(s.parallel.balance_interval),
+                 s.parallel.cost.c_str());
+  }
+  std::fflush(progress);
+  return n;
+}
+
+namespace {
+
+void print_blocks(std::ostream& out, const sim::Simulation& sim) {
+  const auto& h = sim.hybrid();
+  const auto& r = h.report();
+  out << "  blocks (" << bridge::to_string(sim.blocks().def.mode) << "): " << r.blocks_initial << " at the start, "
+      << r.blocks_now << " rigid at the end; " << r.conversions << " conversions made " << r.particles_created
+      << " particles (" << r.bonds_created << " bonds, " << r.sites_dropped << " overlapping sites dropped); peak "
+      << r.peak_particles << " particles; " << r.rigid_steps << " rigid steps of " << sci(r.rigid_dt, 4)
+      << " s; " << h.world()->broken_joint_count() << " freeze joints broken\n";
+  out << "  block-particle freeze bonds: " << r.ice_bonds_created << " at the start, " << r.joints_to_bonds
+      << " made from joints of converted blocks, " << r.block_bonds_handed_over
+      << " handed over to particle bonds at conversions (" << r.block_bonds_unmatched
+      << " released with no new particle within 1.5 D), " << h.block_particle_bonds_broken() << " broken\n";
+  out << "  conversions governed by: freeze bonds " << r.conversions_freeze << ", flexure " << r.conversions_flexure
+      << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
+      << "largest utilisation seen " << sci(r.max_utilisation, 3) << "; conversion KE change "
+      << sci(r.kinetic_energy_change, 3) << " J\n";
+  out << "  time: bonded " << sci(r.seconds_bonded, 4) << " s, rigid " << sci(r.seconds_rigid, 4)
+      << " s, bridge " << sci(r.seconds_bridge, 4) << " s\n";
+}
+
+void print_pieces_and_iso(std::ostream& out, const sim::RunReport& an, const sim::RunFigures& f) {
+  std::size_t multi = 0;
+  for (auto n : an.pieces.size) multi += n >= 2;
+  std::vector<double> ext;
+  for (std::size_t k = 1; k < an.pieces.size.size(); ++k)
+    if (an.pieces.size[k] >= 2) ext.push_back(an.pieces.extent[k]);
+  std::sort(ext.begin(), ext.end());
+  const double median = ext.empty() ? 0.0
+                        : ext.size() % 2 ? ext[ext.size() / 2]
+                                         : 0.5 * (ext[ext.size() / 2 - 1] + ext[ext.size() / 2]);
+  out << "  pieces: " << multi << " with >= 2 particles (" << an.pieces.size.size() << " in all), largest "
+      << (an.pieces.size.empty() ? 0 : an.pieces.size[0]) << " particles; median extent of broken-off pieces "
+      << sci(median, 4) << " m (" << ext.size() << " pieces); L_c = " << sci(an.L_c, 4) << " m\n";
+  if (an.has_iso) {
+    const auto& r = an.iso;
+    out << "  ISO 19906 (h = " << sci(an.iso_in.thickness, 4) << " m, h_r = " << sci(f.max_pile, 4)
+        << " m): H_B " << sci(r.H_B, 4) << ", H_P " << sci(r.H_P, 4) << ", H_R " << sci(r.H_R, 4) << ", H_L "
+        << sci(r.H_L, 4) << ", H_T " << sci(r.H_T, 4) << " N\n";
+    out << "  DEM peak horizontal force " << sci(f.peak_h, 4) << " N vs ISO F_H " << sci(r.F_H, 4)
+        << " N: DEM/ISO = " << sci(r.F_H > 0 ? f.peak_h / r.F_H : 0.0, 3) << "\n";
+  } else if (!an.iso_note.empty()) {
+    out << "  " << an.iso_note << "\n";
+  }
+}
+
+/// MPI figures (collective): the slowest rank sets the pace; comm time is exchanges + reductions.
+void print_parallel(std::ostream& out, const sim::Simulation& sim, double wall, const par::Comm& comm) {
+  const auto& e = sim.engine();
+  double pf[3] = {e.parallel_stats().force_seconds, e.parallel_stats().comm_seconds, 0.0};
+  const double force_time_sum = comm.sum(pf[0]);
+  comm.max(pf, 2);
+  const std::int64_t migrated = comm.sum(static_cast<std::int64_t>(e.parallel_stats().migrated));
+  comm.barrier();
+  if (!comm.parallel()) return;
+  out << "  MPI: " << comm.size() << " ranks; force time max/mean " << sci(pf[0] / std::max(force_time_sum / comm.size(), 1e-12), 3)
+      << " (load imbalance), max comm time " << sci(pf[1], 3) << " s (" << sci(100.0 * pf[1] / std::max(wall, 1e-9), 3)
+      << " % of wall), " << e.parallel_stats().exchanges << " exchanges, " << migrated << " migrations, "
+      << e.parallel_stats().balances << " load balances\n";
+  const char* axis = "xyz";  // where the load balance put the cuts (they follow the busy region)
+  for (int a = 0; a < 3; ++a) {
+    const auto& c = e.decomposition().cuts(a);
+    if (c.size() <= 2) continue;
+    out << "  cuts across " << axis[a] << " at";
+    for (std::size_t k = 1; k + 1 < c.size(); ++k) out << " " << sci(c[k], 4);
+    out << " m (structure at " << axis[a] << " = " << (sim.has_structure() ? sci(sim.structure_position()[a], 4) : "-")
+        << " m)\n";
+  }
+}
+
+}  // namespace
+
+void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulation& sim, const sim::RunFigures& f,
+                   const sim::RunReport& an, const RunEnd& end, const par::Comm& comm) {
+  std::ostringstream mpi;  // collective: every rank reduces before rank 0 prints
+  print_parallel(mpi, sim, end.wall_seconds, comm);
+  const auto& e = sim.engine();
+  const auto& st = e.stats();
+  const double wall = std::max(end.wall_seconds, 1e-9);
+  out << "hybridsim: " << s.name << " finished: " << e.step_count() << " steps to t = " << sci(e.time(), 6)
+      << " s in " << sci(end.wall_seconds, 4) << " s wall (" << sci(e.step_count() / wall, 4) << " steps/s, "
+      << sci(static_cast<double>(end.start.particles) * e.step_count() / wall, 3) << " particle-steps/s)\n";
+  out << "  particles " << end.start.particles << " at the start, " << e.global_particle_count()
+      << " at the end; bonds " << end.start.bonds << ", broken " << st.bonds_broken << " ("
+      << st.bonds_broken_tension << " tension, " << st.bonds_broken_shear << " shear)\n";
+  for (std::size_t w = 0; w < s.walls.size(); ++w)
+    out << "  peak force on wall '" << s.walls[w].name << "': " << sci(f.wall_peak[w], 4) << " N at t = "
+        << sci(f.wall_peak_time[w], 4) << " s\n";
+  if (sim.has_structure()) {
+    const Vec3& mean = f.mean_force;
+    out << "  structure '" << s.structure.name << "': peak horizontal force " << sci(f.peak_h, 4)
+        << " N at t = " << sci(f.peak_h_time, 4) << " s (output-interval means; single-step peak "
+        << sci(f.peak_step, 4) << " N at t = " << sci(f.peak_step_time, 4) << " s); mean force ("
+        << sci(mean.x(), 4) << ", " << sci(mean.y(), 4) << ", " << sci(mean.z(), 4) << ") N\n";
+    out << "  max pile height " << sci(f.max_pile, 4) << " m at t = " << sci(f.max_pile_time, 4) << " s\n";
+  }
+  if (sim.has_blocks()) print_blocks(out, sim);
+  print_pieces_and_iso(out, an, f);
+  out << mpi.str();
+  out << "  output: " << end.output << " (" << f.rows << " series rows, " << f.snapshots << " snapshots)\n";
+}
+
+}  // namespace hs::app

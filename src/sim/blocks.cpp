@@ -1,0 +1,172 @@
+#include "sim/blocks.h"
+
+#include "common/error.h"
+#include "mesh/pier.h"
+#include "rigid/ridge_io.h"
+
+#include <cmath>
+#include <sstream>
+
+namespace hs::sim {
+
+namespace {
+
+/// The hybrid system's settings: rigid world, block material, conversion policy.
+bridge::HybridDef hybrid_def(const scene::Scene& s) {
+  bridge::HybridDef d;
+  const auto& b = s.blocks;
+  d.mode = bridge::conversion_mode_from_string(b.conversion);
+  d.rigid_dt = b.rigid_dt;
+  d.ice.diameter = s.material.particle_diameter;
+  d.ice.buoyancy = bonded::BuoyancyModel::Column;
+  d.block_density = b.density > 0.0 ? b.density : s.material.density;
+  d.block_friction = b.friction >= 0.0 ? b.friction : s.material.friction;
+  rigid::RigidWorldDef& w = d.world;
+  w.gravity = s.gravity;
+  w.water = s.water.enabled;
+  w.water_level = s.water.level;
+  w.water_density = s.water.density;
+  w.water_current = s.water.current;
+  w.linear_drag = b.linear_drag;
+  w.quadratic_drag_cd = b.drag_coefficient;
+  w.friction = d.block_friction;
+  w.solver_iterations = b.solver_iterations;
+  w.freeze_bond_strength = s.bonds.freeze_tensile_strength;
+  w.freeze_bond_shear_strength = s.bonds.freeze_shear_strength;
+  d.safety_factor = b.safety_factor;
+  d.stress_time_constant = b.stress_time_constant;
+  d.flexural_strength = b.flexural_strength > 0.0 ? b.flexural_strength : s.analysis.flexural_strength;
+  return d;
+}
+
+bridge::ConversionRegion conversion_region(const scene::ConversionRegionDef& g, double structure_radius) {
+  bridge::ConversionRegion r;
+  r.shape = g.shape == "box" ? bridge::ConversionRegion::Shape::Box : bridge::ConversionRegion::Shape::Cylinder;
+  r.offset = g.offset;
+  if (g.shape == "box") r.half_extents = g.half_extents;
+  r.radius = g.radius > 0.0 ? g.radius : structure_radius + 5.0;
+  r.z_min = g.z_min;
+  r.z_max = g.z_max;
+  r.validate();
+  return r;
+}
+
+rigid::KinematicMeshDef kinematic_structure(const scene::StructureDef& st, const mesh::TriMesh& m) {
+  rigid::KinematicMeshDef k;
+  k.vertices = m.vertices;
+  k.triangles = m.triangles;
+  k.triangle_part = m.triangle_part;
+  k.part_count = std::max<std::size_t>(1, m.part_names.size());
+  k.position = st.position;
+  k.velocity = st.velocity;
+  k.friction = st.friction;
+  return k;
+}
+
+void add_block(BlockSetup& out, const Vec3& half, const Vec3& x, const Quat& q, const Vec3& v, const Vec3& omega) {
+  bridge::BlockInit bi;
+  bi.def.half_extents = half;
+  bi.def.position = x;
+  bi.def.orientation = q;
+  bi.def.velocity = v;
+  bi.def.angular_velocity = omega;
+  bi.def.density = out.def.block_density;
+  out.blocks.push_back(bi);
+}
+
+/// The ridge file's blocks inside keep_x / keep_y (and its sail unless keep_sail is false),
+/// shifted by the offset, with their joints to each other and to the ice sheet.
+void add_ridge_blocks(BlockSetup& out, const scene::Scene& s) {
+  const auto& b = s.blocks;
+  const rigid::RidgeResult r = rigid::load_ridge(b.ridge_file_path);
+  out.ridge_blocks_in_file = r.blocks.size();
+  std::vector<long> kept(r.blocks.size(), -1);  // ridge row -> index in out.blocks
+  for (std::size_t k = 0; k < r.blocks.size(); ++k) {
+    const auto& rb = r.blocks[k];
+    const Vec3 x = rb.position + b.offset;
+    if (x.x() < b.keep_x[0] || x.x() > b.keep_x[1] || x.y() < b.keep_y[0] || x.y() > b.keep_y[1]) continue;
+    if (rb.part == 1 && !b.keep_sail) continue;
+    kept[k] = static_cast<long>(out.blocks.size());
+    add_block(out, rb.half_extents, x, rb.orientation, Vec3::Zero(), Vec3::Zero());
+  }
+  for (const auto& j : r.joints) {
+    if (j.b < 0) {
+      if (kept[j.a] >= 0)
+        out.ice_joints.push_back({static_cast<std::size_t>(kept[j.a]), j.anchor + b.offset, j.normal, j.area});
+      continue;
+    }
+    if (kept[j.a] < 0 || kept[j.b] < 0) continue;
+    out.joints.push_back({static_cast<std::size_t>(kept[j.a]), static_cast<std::size_t>(kept[j.b]),
+                          j.anchor + b.offset, j.normal, j.area});
+  }
+  if (s.has_ice && std::abs(r.def.level_ice_thickness - s.ice.thickness) > 1e-9) {
+    std::ostringstream m;
+    m << "/blocks/ridge_file: the ridge was generated under " << r.def.level_ice_thickness
+      << " m level ice but the scene's ice is " << s.ice.thickness << " m thick";
+    out.warnings.push_back(m.str());
+  }
+}
+
+/// Blocks that start inside the structure would be pushed out violently (or, as particles,
+/// stop the run): a parametric pier is a solid of revolution, so a block is dropped when its
+/// bounding sphere reaches inside the pier's radius at any height it spans. Joints follow.
+void drop_blocks_inside_pier(BlockSetup& out, const scene::StructureDef& st) {
+  std::vector<bridge::BlockInit> kept;
+  std::vector<long> index(out.blocks.size(), -1);
+  std::size_t dropped = 0;
+  for (std::size_t k = 0; k < out.blocks.size(); ++k) {
+    const auto& bd = out.blocks[k].def;
+    const Vec3 rel = bd.position - st.position;
+    const double R = bd.half_extents.norm();
+    double r_pier = 0.0;
+    for (int q = -4; q <= 4; ++q) r_pier = std::max(r_pier, mesh::pier_radius_at(st.pier, rel.z() + 0.25 * q * R));
+    if (std::hypot(rel.x(), rel.y()) < r_pier + R) {
+      ++dropped;
+      continue;
+    }
+    index[k] = static_cast<long>(kept.size());
+    kept.push_back(out.blocks[k]);
+  }
+  if (!dropped) return;
+  std::vector<bridge::JointInit> joints;
+  for (auto j : out.joints)
+    if (index[j.a] >= 0 && index[j.b] >= 0) {
+      j.a = static_cast<std::size_t>(index[j.a]);
+      j.b = static_cast<std::size_t>(index[j.b]);
+      joints.push_back(j);
+    }
+  out.joints = std::move(joints);
+  std::vector<bridge::IceJointInit> ice;
+  for (auto j : out.ice_joints)
+    if (index[j.block] >= 0) {
+      j.block = static_cast<std::size_t>(index[j.block]);
+      ice.push_back(j);
+    }
+  out.ice_joints = std::move(ice);
+  out.blocks = std::move(kept);
+  out.warnings.push_back("/blocks: " + std::to_string(dropped) +
+                         " blocks start inside or touching the pier and were left out; move the structure "
+                         "(structure.position) or narrow keep_x / keep_y");
+}
+
+}  // namespace
+
+BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius) {
+  BlockSetup out;
+  out.def = hybrid_def(s);
+  if (!s.has_blocks) return out;
+  out.def.region = conversion_region(s.blocks.region, s.has_structure ? structure_radius : 0.0);
+  if (s.has_structure && structure) {
+    out.def.has_structure = true;
+    out.def.structure = kinematic_structure(s.structure, *structure);
+  }
+  if (!s.blocks.ridge_file_path.empty()) add_ridge_blocks(out, s);
+  for (const auto& it : s.blocks.list)
+    add_block(out, it.half_extents, it.position, it.orientation, it.velocity, it.angular_velocity);
+  if (s.has_structure && s.structure.type == "pier") drop_blocks_inside_pier(out, s.structure);
+  if (out.blocks.empty())
+    throw InputError("/blocks/keep_x", "no block left: none inside keep_x / keep_y, or all inside the structure");
+  return out;
+}
+
+}  // namespace hs::sim

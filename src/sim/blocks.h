@@ -1,0 +1,29 @@
+// From a scene to the hybrid system's inputs: the blocks (ridge file and/or list), the rigid
+// world's settings, the structure's mesh for block contact, the conversion mode.
+#pragma once
+
+#include "bridge/hybrid.h"
+#include "mesh/tri_mesh.h"
+#include "scene/scene.h"
+
+#include <string>
+#include <vector>
+
+namespace hs::sim {
+
+struct BlockSetup {
+  bridge::HybridDef def;
+  std::vector<bridge::BlockInit> blocks;
+  std::vector<bridge::JointInit> joints;         ///< ridge joints between kept blocks
+  std::vector<bridge::IceJointInit> ice_joints;  ///< ridge joints from kept blocks to the ice sheet
+  std::size_t ridge_blocks_in_file = 0;          ///< before keep_x / keep_y / keep_sail
+  std::vector<std::string> warnings;
+};
+
+/// Reads the scene's blocks (InputError at /blocks/ridge_file for a missing or bad file).
+/// `structure` is the structure's mesh as built for the engine (nullptr without a structure),
+/// `structure_radius` its widest radius (the default conversion region). A scene without a
+/// "blocks" section gives an empty block list (no rigid world).
+BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius);
+
+}  // namespace hs::sim

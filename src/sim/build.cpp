@@ -1,0 +1,181 @@
+// Building a scene's engine (moved from src/scene: a scene is definitions only).
+#include "sim/build.h"
+
+#include "bonded/hcp_lattice.h"
+#include "common/error.h"
+#include "mesh/pier.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hs::sim {
+
+bonded::EngineDef engine_def(const scene::Scene& s) {
+  using namespace bonded;
+  EngineDef d;
+  const auto& m = s.material;
+  d.dt = s.time.dt;
+  d.dt_alpha = s.time.dt_alpha;
+  d.youngs_modulus = m.youngs_modulus;
+  d.poisson_ratio = m.poisson_ratio;
+  d.density = m.density;
+  d.gravity = s.gravity;
+  d.contact_model = m.contact_model;
+  const double k = m.effective_stiffness();
+  d.contact.kn = d.contact.kt = k;
+  d.contact.zeta_n = d.contact.zeta_t = damping_ratio_from_restitution(m.restitution);
+  d.contact.mu = m.friction;
+  d.hertz = HertzContactParams::from_material(m.youngs_modulus, m.poisson_ratio, m.restitution, m.friction);
+  // Bonds: pair reduced mass and inertia of two lattice particles.
+  const double D = m.particle_diameter, r = 0.5 * D;
+  const double mass = m.density * hcp_cell_volume(D);
+  const double inertia = 0.4 * mass * r * r;
+  const auto& b = s.bonds;
+  d.bond[static_cast<int>(BondKind::Lattice)] = ParallelBondParams::from_stiffness(
+      k, k, b.radius_ratio * r, b.tensile_strength, b.shear_strength, b.damping_ratio, 0.5 * mass, 0.5 * inertia);
+  d.bond[static_cast<int>(BondKind::Freeze)] =
+      ParallelBondParams::from_stiffness(k, k, b.radius_ratio * r, b.freeze_tensile_strength,
+                                         b.freeze_shear_strength, b.damping_ratio, 0.5 * mass, 0.5 * inertia);
+  d.water.enabled = s.water.enabled;
+  d.water.level = s.water.level;
+  d.water.density = s.water.density;
+  d.water.model = BuoyancyModel::Column;
+  d.water.linear_drag = s.water.linear_drag;
+  d.water.drag_coefficient = s.water.drag_coefficient;
+  d.water.current = s.water.current;
+  d.limits.max_speed = s.stability.max_speed;
+  d.limits.max_overlap_ratio = s.stability.max_overlap_ratio;
+  return d;
+}
+
+IceLayout ice_layout(const scene::Scene& s) {
+  IceLayout L;
+  const double D = s.material.particle_diameter;
+  const double c = bonded::hcp_layer_spacing(D);
+  L.layers = static_cast<std::size_t>(std::max(1L, std::lround(s.ice.thickness / c)));
+  const double h = L.layers * c;
+  // Floating at equilibrium (Column buoyancy): draft h rho_i / rho_w, freeboard h (1 - rho_i/rho_w).
+  // Without water the sheet rests with its bottom at z = 0.
+  const double draft = s.water.enabled ? h * s.material.density / s.water.density : 0.0;
+  const double level = s.water.enabled ? s.water.level : 0.0;
+  L.bottom_z = level - draft;
+  L.top_z = L.bottom_z + h;
+  if (s.ice.has_consolidated_layer)
+    L.consolidated_layers = static_cast<std::size_t>(
+        std::max<long>(static_cast<long>(L.layers) + 1, std::lround(s.ice.consolidated_layer.thickness / c)));
+  return L;
+}
+
+mesh::TriMesh structure_mesh(const scene::Scene& s) {
+  if (s.structure.type == "pier") return mesh::make_pier(s.structure.pier);
+  try {
+    return mesh::load_mesh(s.structure.mesh_path);
+  } catch (const InputError& e) {
+    throw InputError("/structure/mesh", "cannot use mesh file \"" + s.structure.mesh_path + "\": " + e.what());
+  }
+}
+
+double structure_radius(const scene::Scene& s, const mesh::TriMesh& m) {
+  if (s.structure.type == "pier") return mesh::pier_cone_radius(s.structure.pier, s.structure.pier.cone_bottom_z);
+  const mesh::Aabb b = mesh::bounding_box(m);
+  return 0.5 * std::max(b.extent().x(), b.extent().y());
+}
+
+analysis::IsoInputs iso_inputs(const scene::Scene& s, double rubble_height) {
+  if (!s.has_structure)
+    throw InputError("/structure", "the ISO 19906 estimate needs a cone: add \"structure\": {\"type\": \"pier\"}");
+  if (s.structure.type != "pier")
+    throw InputError("/structure/type", "the ISO 19906 estimate needs the parametric pier (waterline diameter and "
+                                        "cone angle); a mesh structure does not give them");
+  analysis::IsoInputs in;
+  in.thickness = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
+  in.waterline_diameter = s.structure.pier.waterline_diameter;
+  in.cone_angle_deg = s.structure.pier.cone_angle_deg;
+  in.flexural_strength = s.analysis.flexural_strength;
+  in.youngs_modulus = s.material.youngs_modulus;
+  in.poisson_ratio = s.material.poisson_ratio;
+  in.friction_ice_structure = s.structure.friction;
+  in.friction_ice_ice = s.analysis.friction_ice_ice;
+  in.ice_density = s.material.density;
+  in.water_density = s.water.density;
+  in.gravity = s.gravity.norm();
+  in.rubble_height = rubble_height;
+  in.rubble_porosity = s.analysis.rubble_porosity;
+  in.rubble_cohesion = s.analysis.rubble_cohesion;
+  in.rubble_slope_deg = s.analysis.rubble_slope_deg > 0 ? s.analysis.rubble_slope_deg : 0.8 * in.cone_angle_deg;
+  in.rubble_friction_angle_deg = s.analysis.rubble_friction_angle_deg;
+  in.keel_depth = s.analysis.keel_depth;
+  return in;
+}
+
+Built build_engine(const scene::Scene& s, bool check_dt) {
+  using namespace bonded;
+  Built out;
+  out.engine = std::make_unique<Engine>(engine_def(s));
+  Engine& e = *out.engine;
+  const double D = s.material.particle_diameter;
+  const double c = hcp_layer_spacing(D);
+  const IceLayout L = ice_layout(s);
+  out.layout = L;
+
+  // One lattice for the whole sheet. With a consolidated layer the box is as thick as that
+  // layer, hanging lower by the number of extra layers its own equilibrium draft needs (a
+  // whole number of layers, so the lattice stays continuous), and the level ice keeps only
+  // its own layers outside the band.
+  std::size_t total_layers = L.layers;
+  std::size_t below = 0;  // consolidated layers below the level ice's bottom layer
+  if (s.ice.has_consolidated_layer) {
+    total_layers = L.consolidated_layers;
+    const double draft_c = s.water.enabled ? total_layers * c * s.material.density / s.water.density : 0.0;
+    const double draft_l = s.water.enabled ? L.layers * c * s.material.density / s.water.density : 0.0;
+    const long extra = std::lround((draft_c - draft_l) / c);
+    below = static_cast<std::size_t>(std::clamp<long>(extra, 0, static_cast<long>(total_layers - L.layers)));
+  }
+  const double box_bottom = L.bottom_z - below * c;
+  const Vec3 half(0.5 * s.ice.length, 0.5 * s.ice.width, 0.5 * total_layers * c);
+  const Pose pose{Vec3(s.ice.origin[0] + half.x(), s.ice.origin[1] + half.y(), box_bottom + half.z()),
+                  Quat::Identity()};
+  const auto centres = hcp_fill_box(half, pose, D);
+
+  ParticleInit p;
+  p.radius = 0.5 * D;
+  p.mass = s.material.density * hcp_cell_volume(D);
+  p.buoyant_volume = hcp_cell_volume(D);
+  e.particles().reserve(centres.size());
+  const double level_lo = L.bottom_z - 0.25 * c, level_hi = L.top_z + 0.25 * c;
+  // Keep the spheres that lie wholly inside the footprint, so that walls placed at the
+  // sheet's edges (origin, origin + length/width) touch but do not overlap it.
+  const double x0 = s.ice.origin[0], x1 = x0 + s.ice.length, y0 = s.ice.origin[1], y1 = y0 + s.ice.width;
+  const double r = 0.5 * D, eps = 1e-9 * D;
+  for (const auto& x : centres) {
+    if (x.x() - r < x0 - eps || x.x() + r > x1 + eps || x.y() - r < y0 - eps || x.y() + r > y1 + eps) continue;
+    if (s.ice.has_consolidated_layer) {
+      const auto& cl = s.ice.consolidated_layer;
+      const bool in_band = std::abs(x.x() - cl.center_x) <= 0.5 * cl.width;
+      if (!in_band && (x.z() < level_lo || x.z() > level_hi)) continue;
+    }
+    p.x = x;
+    e.add_particle(p);
+  }
+  out.particles = e.particles().size();
+  out.bonds = e.bond_touching(0, e.particles().size(), BondKind::Lattice);
+
+  for (const auto& w : s.walls) e.add_wall(PlaneWall{w.name, w.point, w.normal, w.velocity, w.friction});
+  if (s.has_structure) {
+    MeshWallDef md;
+    md.name = s.structure.name;
+    out.structure_mesh = structure_mesh(s);  // the one build of the mesh: the blocks' contact uses it too
+    out.structure_radius = structure_radius(s, out.structure_mesh);
+    md.mesh = out.structure_mesh;
+    md.position = s.structure.position;
+    md.velocity = s.structure.velocity;
+    md.friction = s.structure.friction;
+    out.structure = e.add_mesh_wall(std::move(md));
+    out.structure_parts = e.mesh_wall(out.structure).mesh.part_names;
+  }
+  if (check_dt) e.check_time_step();
+  return out;
+}
+
+
+}  // namespace hs::sim

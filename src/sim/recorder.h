@@ -1,0 +1,73 @@
+// Recorders: what a run writes to its /series (and /snapshots), one small class per family of
+// series, all registered in one list (recorders.cpp, make_recorders). A new output series is
+// one Recorder subclass plus one line in that list.
+//
+// Per run: declare() once (the series appear in the run file), then write() for row 0 (the
+// initial state), then after every DEM step after_step() (sums and peaks over the output
+// interval) and, when due(), write(). Each recorder keeps its own sums; a row holds the mean
+// over the steps since the previous row (row 0: the instantaneous value).
+#pragma once
+
+#include "common/types.h"
+#include "sim/simulation.h"
+
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+namespace hs::io {
+class RunFile;
+}
+namespace hs::par {
+class Comm;
+}
+
+namespace hs::sim {
+
+/// What the recorders saw over the run, for the end-of-run summary and analysis.
+struct RunFigures {
+  std::vector<double> wall_peak, wall_peak_time;  ///< N, s: largest single-step |F| per wall
+  double peak_h = 0.0, peak_h_time = 0.0;         ///< structure, horizontal |F| of the row means
+  double peak_step = 0.0, peak_step_time = 0.0;   ///< structure, horizontal |F| of single steps
+  Vec3 mean_force = Vec3::Zero();                 ///< structure, mean over all steps
+  double max_pile = 0.0, max_pile_time = 0.0;     ///< m, s
+  std::uint64_t rows = 0, snapshots = 0;         ///< written to the run file
+};
+
+class Recorder {
+ public:
+  virtual ~Recorder() = default;
+  /// Adds this recorder's series to the run file.
+  virtual void declare(io::RunFile& file) = 0;
+  /// After every DEM step: accumulate what the rows average (default: nothing).
+  virtual void after_step(const Simulation& sim) {}
+  /// Whether step k (1..total) ends a row of this recorder: every output interval and the last step.
+  virtual bool due(std::uint64_t k, const Schedule& sc) const {
+    return k % sc.output_every == 0 || k == sc.total_steps;
+  }
+  /// Writes one row (collective under MPI: every rank calls it).
+  virtual void write(Simulation& sim, io::RunFile& file) = 0;
+  /// Adds what this recorder saw to the run's figures (default: nothing).
+  virtual void figures(RunFigures& f) const {}
+};
+
+/// The run's recorders in their fixed order.
+class Recorders {
+ public:
+  Recorders(const Simulation& sim, const scene::Scene& s, const par::Comm& comm);
+  void declare(io::RunFile& file);
+  /// Row 0: the initial state (forces are zero until the first step).
+  void write_initial(Simulation& sim, io::RunFile& file);
+  /// After DEM step k: every recorder accumulates, then those due write their row.
+  void after_step(std::uint64_t k, Simulation& sim, io::RunFile& file);
+  RunFigures figures() const;
+
+ private:
+  std::vector<std::unique_ptr<Recorder>> list_;
+};
+
+/// The list: every recorder of a run with this simulation and scene (recorders.cpp).
+std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, const scene::Scene& s,
+                                                      const par::Comm& comm);
+
+}  // namespace hs::sim

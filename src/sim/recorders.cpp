@@ -1,0 +1,392 @@
+// The recorders of a run: one class per family of series, and the list (make_recorders).
+#include "sim/recorder.h"
+
+#include "analysis/pile_height.h"
+#include "io/run_file.h"
+#include "parallel/comm.h"
+
+#include <cmath>
+#include <iterator>
+#include <string>
+
+namespace hs::sim {
+
+namespace {
+
+/// Sum of a per-step vector quantity over an output interval; the row is its mean, or the
+/// instantaneous value when no step was taken yet (row 0).
+struct Mean3 {
+  Vec3 sum = Vec3::Zero();
+  Vec3 take(std::uint64_t n, const Vec3& instant) {
+    const double inv = n ? 1.0 / static_cast<double>(n) : 0.0;
+    const Vec3 m = n ? Vec3(sum * inv) : instant;
+    sum.setZero();
+    return m;
+  }
+};
+
+// ---- /series/time, /series/step
+class TimeRecorder : public Recorder {
+ public:
+  void declare(io::RunFile& f) override {
+    id_time_ = f.add_series("/series/time", 1, "s", "simulated time");
+    id_step_ = f.add_int_series("/series/step", 1, "1", "step number");
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    const double t = sim.engine().time();
+    const auto st = static_cast<std::int64_t>(sim.engine().step_count());
+    f.append(id_time_, &t);
+    f.append(id_step_, &st);
+    ++rows_;
+  }
+  void figures(RunFigures& fig) const override { fig.rows = rows_; }
+
+ private:
+  int id_time_ = -1, id_step_ = -1;
+  std::uint64_t rows_ = 0;
+};
+
+// ---- /series/walls/<name>/force; without a structure also /series/force (their total)
+class WallsRecorder : public Recorder {
+ public:
+  WallsRecorder(const std::vector<scene::WallDef>& walls, bool total_is_force)
+      : walls_(walls), total_(total_is_force), sum_(walls.size()), peak_(walls.size(), 0.0),
+        peak_time_(walls.size(), 0.0) {}
+  void declare(io::RunFile& f) override {
+    if (total_)
+      id_total_ = f.add_series("/series/force", 3, "N",
+                               "total force exerted by the ice on all walls, mean over the output interval "
+                               "ending at time");
+    for (const auto& w : walls_)
+      id_.push_back(f.add_series("/series/walls/" + w.name + "/force", 3, "N",
+                                 "force on wall '" + w.name + "', mean over the output interval"));
+  }
+  void after_step(const Simulation& sim) override {
+    const auto& e = sim.engine();
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      const Vec3& f = e.wall_force(static_cast<int>(w));
+      sum_[w].sum += f;
+      const double m = f.norm();
+      if (m > peak_[w]) {
+        peak_[w] = m;
+        peak_time_[w] = e.time();
+      }
+    }
+    ++n_;
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    Vec3 total = Vec3::Zero();
+    for (std::size_t w = 0; w < walls_.size(); ++w) {
+      const Vec3 m = sum_[w].take(n_, sim.engine().wall_force(static_cast<int>(w)));
+      total += m;
+      f.append(id_[w], m.data());
+    }
+    if (total_) f.append(id_total_, total.data());
+    n_ = 0;
+  }
+  void figures(RunFigures& fig) const override {
+    fig.wall_peak = peak_;
+    fig.wall_peak_time = peak_time_;
+  }
+
+ private:
+  const std::vector<scene::WallDef>& walls_;
+  bool total_;
+  std::vector<Mean3> sum_;
+  std::vector<double> peak_, peak_time_;
+  std::vector<int> id_;
+  int id_total_ = -1;
+  std::uint64_t n_ = 0;
+};
+
+// ---- /series/force, /series/moment, /series/parts/<part>/{force,moment}: the structure's
+// total load (particles + blocks, Simulation::structure_load)
+class StructureLoadRecorder : public Recorder {
+ public:
+  explicit StructureLoadRecorder(const std::vector<std::string>& parts)
+      : parts_(parts), pf_(parts.size()), pm_(parts.size()) {}
+  void declare(io::RunFile& f) override {
+    id_force_ = f.add_series("/series/force", 3, "N",
+                             "force exerted by the ice on the structure, mean over the output interval ending at time");
+    id_moment_ = f.add_series("/series/moment", 3, "N m",
+                              "moment of the ice loads on the structure about its mesh origin (moving with it), "
+                              "mean over the output interval");
+    for (const auto& pn : parts_) {
+      id_pf_.push_back(f.add_series("/series/parts/" + pn + "/force", 3, "N",
+                                    "force on structure part '" + pn + "', mean over the output interval"));
+      id_pm_.push_back(f.add_series("/series/parts/" + pn + "/moment", 3, "N m",
+                                    "moment on structure part '" + pn + "' about the mesh origin, mean over the interval"));
+    }
+  }
+  void after_step(const Simulation& sim) override {
+    const StructureLoad L = sim.structure_load();
+    force_.sum += L.force;
+    moment_.sum += L.moment;
+    for (std::size_t q = 0; q < parts_.size(); ++q) {
+      pf_[q].sum += L.part_force[q];
+      pm_[q].sum += L.part_moment[q];
+    }
+    total_ += L.force;
+    ++steps_;
+    const double fh = std::hypot(L.force.x(), L.force.y());
+    if (fh > peak_step_) {
+      peak_step_ = fh;
+      peak_step_time_ = sim.engine().time();
+    }
+    ++n_;
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    const StructureLoad L = sim.structure_load();
+    const Vec3 force = force_.take(n_, L.force), moment = moment_.take(n_, L.moment);
+    f.append(id_force_, force.data());
+    f.append(id_moment_, moment.data());
+    for (std::size_t q = 0; q < parts_.size(); ++q) {
+      const Vec3 pf = pf_[q].take(n_, L.part_force[q]), pm = pm_[q].take(n_, L.part_moment[q]);
+      f.append(id_pf_[q], pf.data());
+      f.append(id_pm_[q], pm.data());
+    }
+    const double fh = std::hypot(force.x(), force.y());
+    if (fh > peak_h_) {
+      peak_h_ = fh;
+      peak_h_time_ = sim.engine().time();
+    }
+    n_ = 0;
+  }
+  void figures(RunFigures& fig) const override {
+    fig.peak_h = peak_h_;
+    fig.peak_h_time = peak_h_time_;
+    fig.peak_step = peak_step_;
+    fig.peak_step_time = peak_step_time_;
+    fig.mean_force = steps_ ? Vec3(total_ / static_cast<double>(steps_)) : Vec3::Zero();
+  }
+
+ private:
+  std::vector<std::string> parts_;
+  Mean3 force_, moment_;
+  std::vector<Mean3> pf_, pm_;
+  int id_force_ = -1, id_moment_ = -1;
+  std::vector<int> id_pf_, id_pm_;
+  std::uint64_t n_ = 0, steps_ = 0;
+  Vec3 total_ = Vec3::Zero();
+  double peak_h_ = 0.0, peak_h_time_ = 0.0, peak_step_ = 0.0, peak_step_time_ = 0.0;
+};
+
+// ---- /series/pile_height, /series/structure_position
+class PileHeightRecorder : public Recorder {
+ public:
+  PileHeightRecorder(const analysis::PileProbe& probe, const par::Comm& comm) : probe_(probe), comm_(comm) {}
+  void declare(io::RunFile& f) override {
+    id_pile_ = f.add_series("/series/pile_height", 1, "m",
+                            "highest ice above the waterline over the upstream half of the structure, within "
+                            "its widest radius + one particle diameter of the axis");
+    id_pos_ = f.add_series("/series/structure_position", 3, "m", "position of the structure's mesh origin");
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    probe_.axis_point = sim.structure_position();
+    const auto& ps = sim.engine().particles();
+    const double ph = comm_.max(analysis::pile_height(probe_, ps.x.data(), ps.radius.data(), ps.owned()));
+    f.append(id_pile_, &ph);
+    f.append(id_pos_, probe_.axis_point.data());
+    if (ph > max_) {
+      max_ = ph;
+      max_time_ = sim.engine().time();
+    }
+  }
+  void figures(RunFigures& fig) const override {
+    fig.max_pile = max_;
+    fig.max_pile_time = max_time_;
+  }
+
+ private:
+  analysis::PileProbe probe_;
+  const par::Comm& comm_;
+  int id_pile_ = -1, id_pos_ = -1;
+  double max_ = 0.0, max_time_ = 0.0;
+};
+
+// ---- /series/blocks/...: the rigid blocks
+class BlocksRecorder : public Recorder {
+ public:
+  explicit BlocksRecorder(bool has_structure) : has_structure_(has_structure) {}
+  void declare(io::RunFile& f) override {
+    if (has_structure_)
+      id_force_ = f.add_series("/series/blocks/structure_force", 3, "N",
+                               "the rigid blocks' share of /series/force (contact impulses on the structure "
+                               "per rigid step), mean over the output interval");
+    id_ke_ = f.add_series("/series/blocks/kinetic_energy", 1, "J", "kinetic energy of the rigid blocks");
+    id_count_ = f.add_int_series("/series/blocks/count", 1, "1", "rigid blocks (not yet converted)");
+    id_conv_ = f.add_int_series("/series/blocks/conversions", 1, "1", "blocks converted into particles so far");
+    id_joints_ = f.add_int_series("/series/blocks/joints_broken", 1, "1", "freeze joints between blocks broken");
+  }
+  void after_step(const Simulation& sim) override {
+    if (has_structure_) force_.sum += sim.hybrid().structure_force();
+    ++n_;
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    const auto& h = sim.hybrid();
+    if (has_structure_) {
+      const Vec3 bf = force_.take(n_, h.structure_force());
+      f.append(id_force_, bf.data());
+    }
+    const double ke = h.rigid_kinetic_energy();
+    const auto nblk = static_cast<std::int64_t>(h.world()->block_count());
+    const auto nconv = static_cast<std::int64_t>(h.report().conversions);
+    const auto nj = static_cast<std::int64_t>(h.world()->broken_joint_count());
+    f.append(id_ke_, &ke);
+    f.append(id_count_, &nblk);
+    f.append(id_conv_, &nconv);
+    f.append(id_joints_, &nj);
+    n_ = 0;
+  }
+
+ private:
+  bool has_structure_;
+  Mean3 force_;
+  std::uint64_t n_ = 0;
+  int id_force_ = -1, id_ke_ = -1, id_count_ = -1, id_conv_ = -1, id_joints_ = -1;
+};
+
+// ---- /series/energy/...: the particles' energy terms
+class EnergyRecorder : public Recorder {
+ public:
+  void declare(io::RunFile& f) override {
+    for (auto& x : terms_) x.id = f.add_series(std::string("/series/energy/") + x.name, 1, "J", x.description);
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    const auto E = sim.engine().energy();
+    const double v[] = {E.kinetic_translational + E.kinetic_rotational,
+                        E.kinetic_translational,
+                        E.kinetic_rotational,
+                        E.gravity_potential,
+                        E.buoyancy_potential,
+                        E.bond_elastic,
+                        E.contact_elastic,
+                        E.total()};
+    for (std::size_t k = 0; k < std::size(terms_); ++k) f.append(terms_[k].id, &v[k]);
+  }
+
+ private:
+  struct Term {
+    const char* name;
+    const char* description;
+    int id;
+  };
+  Term terms_[8] = {
+      {"kinetic", "kinetic energy, translational + rotational", 0},
+      {"kinetic_translational", "translational kinetic energy", 0},
+      {"kinetic_rotational", "rotational kinetic energy", 0},
+      {"gravity_potential", "gravitational potential energy (reference z = 0)", 0},
+      {"buoyancy_potential", "buoyancy potential energy", 0},
+      {"bond_elastic", "elastic energy in intact bonds", 0},
+      {"contact_elastic", "elastic energy in contacts", 0},
+      {"total", "sum of the above", 0},
+  };
+};
+
+// ---- /series/bonds_broken, /series/bonds, /series/particles
+class CountsRecorder : public Recorder {
+ public:
+  void declare(io::RunFile& f) override {
+    id_broken_ = f.add_int_series("/series/bonds_broken", 1, "1", "bonds broken since the start");
+    id_bonds_ = f.add_int_series("/series/bonds", 1, "1", "intact bonds");
+    id_particles_ = f.add_int_series("/series/particles", 1, "1", "particles");
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    const auto& e = sim.engine();
+    const auto broken = static_cast<std::int64_t>(e.stats().bonds_broken);
+    const std::int64_t nb = e.global_bond_count();
+    const std::int64_t np = e.global_particle_count();
+    f.append(id_broken_, &broken);
+    f.append(id_bonds_, &nb);
+    f.append(id_particles_, &np);
+  }
+
+ private:
+  int id_broken_ = -1, id_bonds_ = -1, id_particles_ = -1;
+};
+
+// ---- /snapshots/NNNNNN/...: every particle, every snapshot interval
+class SnapshotRecorder : public Recorder {
+ public:
+  explicit SnapshotRecorder(const par::Comm& comm) : comm_(comm) {}
+  void declare(io::RunFile&) override {}
+  bool due(std::uint64_t k, const Schedule& sc) const override {
+    return k % sc.snapshot_every == 0 || k == sc.total_steps;
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    auto& e = sim.engine();
+    e.refresh_bond_counts();  // bonds may have broken on the neighbouring rank
+    const auto& p = e.particles();
+    const std::size_t n = p.owned();
+    // This rank's rows: after the lower ranks' particles.
+    const io::FieldSlice sl{comm_.exscan(n), static_cast<std::uint64_t>(e.global_particle_count())};
+    f.begin_snapshot(e.time(), e.step_count());
+    f.write_field("position", p.x.data()->data(), n, 3, "m", sl);
+    f.write_field("velocity", p.v.data()->data(), n, 3, "m/s", sl);
+    f.write_field("radius", p.radius.data(), n, 1, "m", sl);
+    ibuf_.assign(p.bond_count.begin(), p.bond_count.begin() + n);
+    f.write_field("bond_count", ibuf_.data(), n, 1, "1", sl);
+    lbuf_.assign(p.gid.begin(), p.gid.begin() + n);
+    f.write_field("global_id", lbuf_.data(), n, 1, "1", sl);
+    f.end_snapshot();
+    ++count_;
+  }
+  void figures(RunFigures& fig) const override { fig.snapshots = count_; }
+
+ private:
+  const par::Comm& comm_;
+  std::vector<std::int32_t> ibuf_;
+  std::vector<std::int64_t> lbuf_;
+  std::uint64_t count_ = 0;
+};
+
+analysis::PileProbe pile_probe(const Simulation& sim, const scene::Scene& s) {
+  analysis::PileProbe probe;
+  const Vec3& v = s.structure.velocity;
+  probe.upstream = Vec3(v.x(), v.y(), 0.0).norm() > 0 ? Vec3(v.x(), v.y(), 0.0).normalized() : Vec3::UnitX();
+  probe.reach = sim.structure_radius() + s.material.particle_diameter;
+  probe.water_level = s.water.enabled ? s.water.level : 0.0;
+  return probe;
+}
+
+}  // namespace
+
+std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, const scene::Scene& s,
+                                                      const par::Comm& comm) {
+  const bool st = sim.has_structure();
+  std::vector<std::unique_ptr<Recorder>> r;
+  r.push_back(std::make_unique<TimeRecorder>());
+  if (st) r.push_back(std::make_unique<StructureLoadRecorder>(sim.structure_parts()));
+  r.push_back(std::make_unique<WallsRecorder>(s.walls, /*total_is_force=*/!st));
+  if (st) r.push_back(std::make_unique<PileHeightRecorder>(pile_probe(sim, s), comm));
+  if (sim.has_blocks()) r.push_back(std::make_unique<BlocksRecorder>(st));
+  r.push_back(std::make_unique<EnergyRecorder>());
+  r.push_back(std::make_unique<CountsRecorder>());
+  if (sim.schedule().snapshot_every) r.push_back(std::make_unique<SnapshotRecorder>(comm));  // last: after the row
+  return r;
+}
+
+Recorders::Recorders(const Simulation& sim, const scene::Scene& s, const par::Comm& comm)
+    : list_(make_recorders(sim, s, comm)) {}
+
+void Recorders::declare(io::RunFile& file) {
+  for (auto& r : list_) r->declare(file);
+}
+
+void Recorders::write_initial(Simulation& sim, io::RunFile& file) {
+  for (auto& r : list_) r->write(sim, file);
+}
+
+void Recorders::after_step(std::uint64_t k, Simulation& sim, io::RunFile& file) {
+  for (auto& r : list_) r->after_step(sim);
+  for (auto& r : list_)
+    if (r->due(k, sim.schedule())) r->write(sim, file);
+}
+
+RunFigures Recorders::figures() const {
+  RunFigures f;
+  for (const auto& r : list_) r->figures(f);
+  return f;
+}
+
+}  // namespace hs::sim

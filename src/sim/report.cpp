@@ -1,0 +1,136 @@
+#include "sim/report.h"
+
+#include "common/error.h"
+#include "io/run_file_edit.h"
+#include "parallel/comm.h"
+#include "sim/build.h"
+
+#include <cmath>
+#include <cstring>
+#include <utility>
+
+namespace hs::sim {
+
+namespace {
+
+/// Gathers every rank's owned particles and intact bonds on rank 0 (collective) and finds
+/// the pieces there; other ranks get an empty result.
+analysis::Pieces gather_pieces(const bonded::Engine& e, const par::Comm& comm) {
+  using analysis::PieceBond;
+  using analysis::PieceParticle;
+  const auto& p = e.particles();
+  par::Bytes mine(p.owned() * sizeof(PieceParticle)), mine_b(e.bonds().size() * sizeof(PieceBond));
+  for (std::size_t i = 0; i < p.owned(); ++i) {
+    const PieceParticle r{p.gid[i], p.x[i].x(), p.x[i].y(), p.radius[i]};
+    std::memcpy(mine.data() + i * sizeof(PieceParticle), &r, sizeof(PieceParticle));
+  }
+  for (std::size_t k = 0; k < e.bonds().size(); ++k) {
+    const PieceBond r{e.bonds()[k].gi, e.bonds()[k].gj};
+    std::memcpy(mine_b.data() + k * sizeof(PieceBond), &r, sizeof(PieceBond));
+  }
+  const par::Bytes all = comm.gather(mine), all_b = comm.gather(mine_b);
+  if (comm.rank() != 0) return {};
+  std::vector<PieceParticle> recs(all.size() / sizeof(PieceParticle));
+  if (!recs.empty()) std::memcpy(static_cast<void*>(recs.data()), all.data(), all.size());
+  std::vector<PieceBond> bonds(all_b.size() / sizeof(PieceBond));
+  if (!bonds.empty()) std::memcpy(static_cast<void*>(bonds.data()), all_b.data(), all_b.size());
+  return analysis::find_pieces(std::move(recs), bonds);
+}
+
+double characteristic_length(double E, double h, double rho_w, double g, double nu) {
+  return std::pow(E * h * h * h / (12.0 * rho_w * g * (1.0 - nu * nu)), 0.25);
+}
+
+}  // namespace
+
+RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFigures& f, const par::Comm& comm) {
+  RunReport an;
+  an.pieces = gather_pieces(sim.engine(), comm);
+  an.dem_peak = f.peak_h;
+  an.max_pile = f.max_pile;
+  const auto& hyb = sim.hybrid();
+  an.has_hybrid = hyb.has_rigid();
+  an.hybrid = hyb.report();
+  an.block_bonds_broken = hyb.block_particle_bonds_broken();
+  an.conversion = bridge::to_string(sim.blocks().def.mode);
+  const double h_iso = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
+  an.L_c = characteristic_length(s.material.youngs_modulus, h_iso, s.water.density, s.gravity.norm(),
+                                 s.material.poisson_ratio);
+  if (sim.has_structure() && s.structure.type == "pier") {
+    try {
+      an.iso_in = iso_inputs(s, f.max_pile);
+      an.iso = analysis::compute_iso(an.iso_in);
+      an.has_iso = true;
+    } catch (const InputError& err) {
+      an.iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
+    }
+  }
+  return an;
+}
+
+namespace {
+
+void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
+  const std::string g = "/analysis/hybrid";
+  f.add_group(g);
+  const auto& r = a.hybrid;
+  f.set_attribute(g, "conversion", a.conversion);
+  const std::pair<const char*, double> figures[] = {
+      {"conversions", static_cast<double>(r.conversions)},
+      {"particles_created", static_cast<double>(r.particles_created)},
+      {"bonds_created", static_cast<double>(r.bonds_created)},
+      {"sites_dropped", static_cast<double>(r.sites_dropped)},
+      {"conversions_freeze", static_cast<double>(r.conversions_freeze)},
+      {"conversions_flexure", static_cast<double>(r.conversions_flexure)},
+      {"conversions_refused", static_cast<double>(r.conversions_refused)},
+      {"max_utilisation", r.max_utilisation},
+      {"blocks_moved_clear", static_cast<double>(r.blocks_moved_clear)},
+      {"peak_particles", static_cast<double>(r.peak_particles)},
+      {"blocks_initial", static_cast<double>(r.blocks_initial)},
+      {"blocks_final", static_cast<double>(r.blocks_now)},
+      {"rigid_steps", static_cast<double>(r.rigid_steps)},
+      {"rigid_dt", r.rigid_dt},
+      {"rigid_dt_limit", r.rigid_dt_limit},
+      {"seconds_rigid", r.seconds_rigid},
+      {"seconds_bonded", r.seconds_bonded},
+      {"seconds_bridge", r.seconds_bridge},
+      {"conversion_kinetic_energy_change", r.kinetic_energy_change},
+      {"freeze_bonds_to_ice", static_cast<double>(r.ice_bonds_created)},
+      {"freeze_bonds_from_joints", static_cast<double>(r.joints_to_bonds)},
+      {"freeze_bonds_handed_over", static_cast<double>(r.block_bonds_handed_over)},
+      {"freeze_bonds_unmatched", static_cast<double>(r.block_bonds_unmatched)},
+      {"freeze_bonds_broken", static_cast<double>(a.block_bonds_broken)},
+  };
+  for (const auto& [name, value] : figures) f.set_attribute(g, name, value);
+  f.set_attribute(g, "description", std::string("rigid/particle hybrid: conversions, particles created, peak particle "
+                                                "count, wall time per part (s, rank 0), rigid step (s)"));
+}
+
+}  // namespace
+
+void write_analysis(const std::string& path, const RunReport& a) {
+  io::RunFileEditor f(path);
+  f.add_group("/analysis");
+  f.add_group("/analysis/pieces");
+  f.add_vector("/analysis/pieces/size", a.pieces.size, "1",
+               "particles per piece (connected over intact bonds) at the end of the run, descending");
+  f.add_vector("/analysis/pieces/extent", a.pieces.extent, "m",
+               "max horizontal extent of each piece (larger side of its x-y bounding box, spheres included)");
+  f.set_attribute("/analysis/pieces", "characteristic_length", a.L_c);
+  if (a.has_iso) {
+    const std::string g = "/analysis/iso";
+    f.add_group(g);
+    const nlohmann::json result = analysis::iso_to_json(a.iso), inputs = analysis::iso_inputs_to_json(a.iso_in);
+    for (const auto& [k, v] : result.items()) f.set_attribute(g, k, v.get<double>());
+    for (const auto& [k, v] : inputs.items()) f.set_attribute(g, k, v.get<double>());
+    f.set_attribute(g, "dem_peak_horizontal_force", a.dem_peak);
+    f.set_attribute(g, "dem_max_pile_height", a.max_pile);
+    f.set_attribute(g, "dem_over_iso", a.iso.F_H > 0 ? a.dem_peak / a.iso.F_H : 0.0);
+    f.set_attribute(g, "description", std::string("ISO 19906 (Croasdale & Cammaert) cone load for the scene's ice, "
+                                                  "rubble_height = max simulated pile height; forces in N"));
+  }
+  if (a.has_hybrid) write_hybrid(f, a);
+  f.flush();
+}
+
+}  // namespace hs::sim

@@ -1,0 +1,44 @@
+// End-of-run analysis: the pieces the ice broke into, the ISO 19906 estimate beside the
+// simulated load, and the hybrid system's outcome; stored as /analysis in the run file
+// (docs/output.md).
+#pragma once
+
+#include "analysis/iso19906.h"
+#include "analysis/pieces.h"
+#include "bridge/hybrid.h"
+#include "scene/scene.h"
+#include "sim/recorder.h"
+#include "sim/simulation.h"
+
+#include <cstdint>
+#include <string>
+
+namespace hs::par {
+class Comm;
+}
+
+namespace hs::sim {
+
+struct RunReport {
+  analysis::Pieces pieces;     ///< rank 0 only
+  double L_c = 0.0;            ///< m, characteristic length of the (consolidated) ice
+  bool has_iso = false;
+  analysis::IsoInputs iso_in;  ///< rubble height = the max simulated pile height
+  analysis::IsoResult iso;
+  std::string iso_note;        ///< why there is no ISO estimate (a pier scene whose inputs ISO refuses)
+  double dem_peak = 0.0;       ///< N, peak horizontal force on the structure (output-row means)
+  double max_pile = 0.0;       ///< m
+  bool has_hybrid = false;
+  bridge::HybridReport hybrid;
+  std::uint64_t block_bonds_broken = 0;  ///< block-particle freeze bonds broken
+  std::string conversion;                ///< the scene's conversion mode
+};
+
+/// Analyses the finished run. Collective: every rank calls it; the particles and bonds are
+/// gathered on rank 0, which alone gets the pieces.
+RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFigures& f, const par::Comm& comm);
+
+/// Adds /analysis (pieces, iso, hybrid) to the closed run file. Rank 0 only.
+void write_analysis(const std::string& path, const RunReport& r);
+
+}  // namespace hs::sim

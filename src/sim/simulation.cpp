@@ -1,0 +1,61 @@
+#include "sim/simulation.h"
+
+#include "parallel/comm.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hs::sim {
+
+Schedule schedule(const scene::TimeDef& t, double dt) {
+  Schedule sc;
+  sc.dt = dt;
+  sc.total_steps = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::ceil(t.duration / dt - 1e-9)));
+  sc.output_every = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(t.output_interval / dt)));
+  if (t.snapshot_interval > 0)
+    sc.snapshot_every =
+        std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(t.snapshot_interval / dt)));
+  return sc;
+}
+
+const Vec3& Simulation::structure_position() const { return engine().mesh_wall_position(built_.structure); }
+
+StructureLoad Simulation::structure_load() const {
+  const auto& L = engine().mesh_wall_load(built_.structure);
+  const auto& bpf = hybrid_->structure_part_force();
+  const auto& bpm = hybrid_->structure_part_moment();
+  StructureLoad out;
+  out.force = L.force + hybrid_->structure_force();
+  out.moment = L.moment + hybrid_->structure_moment();
+  const std::size_t n = built_.structure_parts.size();
+  out.part_force.resize(n);
+  out.part_moment.resize(n);
+  for (std::size_t q = 0; q < n; ++q) {
+    out.part_force[q] = L.part_force[q] + (q < bpf.size() ? bpf[q] : Vec3::Zero());
+    out.part_moment[q] = L.part_moment[q] + (q < bpm.size() ? bpm[q] : Vec3::Zero());
+  }
+  return out;
+}
+
+Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {
+  Simulation sim;
+  sim.built_ = build_engine(s, opt.check_dt);
+  bonded::Engine& e = *sim.built_.engine;
+  const mesh::TriMesh* structure = sim.has_structure() ? &sim.built_.structure_mesh : nullptr;
+  sim.blocks_ = block_setup(s, structure, sim.built_.structure_radius);
+  bridge::HybridDef def = sim.blocks_.def;
+  if (!opt.convert) def.mode = bridge::ConversionMode::Never;  // count and check only
+  const auto& b = sim.blocks_;
+  sim.hybrid_ = std::make_unique<bridge::HybridSystem>(e, def, b.blocks, b.joints, b.ice_joints);
+  if (comm.parallel()) {  // every rank built the whole scene; each keeps its share
+    bonded::ParallelDef pd;
+    pd.grid = s.parallel.grid;
+    pd.balance_interval = s.parallel.balance_interval;
+    pd.cost = s.parallel.cost == "time" ? bonded::ParallelDef::Cost::Time : bonded::ParallelDef::Cost::Work;
+    e.distribute(comm, pd);
+  }
+  sim.schedule_ = schedule(s.time, e.dt());
+  return sim;
+}
+
+}  // namespace hs::sim

@@ -1,0 +1,88 @@
+// One simulation, built from a scene: the particle engine (bonded ice, walls, the structure),
+// the rigid blocks and the hybrid system that steps both, and the schedule of steps, rows and
+// snapshots. The run pipeline (README, "Architecture"):
+//
+//   scene::load_scene_file -> sim::build_simulation -> loop { Simulation::step, Recorders } -> sim::analyse_run
+//
+// build_simulation is the only place that turns definitions into objects: the structure's
+// mesh is built once, here, for both the particles' mesh wall and the blocks' contact.
+#pragma once
+
+#include "bonded/engine.h"
+#include "bridge/hybrid.h"
+#include "scene/scene.h"
+#include "sim/blocks.h"
+#include "sim/build.h"
+
+#include <cstdint>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace hs::par {
+class Comm;
+}
+
+namespace hs::sim {
+
+/// Steps of a run and the steps between its outputs.
+struct Schedule {
+  double dt = 0;
+  std::uint64_t total_steps = 0;
+  std::uint64_t output_every = 1;    ///< steps between series rows
+  std::uint64_t snapshot_every = 0;  ///< 0 = no snapshots
+};
+Schedule schedule(const scene::TimeDef& t, double dt);
+
+/// The load of the ice on the structure: particles (this DEM step) + blocks (mean over the
+/// current rigid step). Moments about the structure's mesh origin.
+struct StructureLoad {
+  Vec3 force = Vec3::Zero();
+  Vec3 moment = Vec3::Zero();
+  std::vector<Vec3> part_force, part_moment;  ///< per mesh part (structure_parts())
+};
+
+struct BuildOptions {
+  bool check_dt = true;  ///< InputError at /time/dt if dt exceeds the critical step
+  bool convert = true;   ///< false: blocks stay rigid whatever the scene says (`hybridsim check`)
+};
+
+class Simulation {
+ public:
+  /// One DEM step of the particles; the blocks advance every steps_per_rigid_step() of them.
+  void step() { hybrid_->step(); }
+
+  bonded::Engine& engine() { return *built_.engine; }
+  const bonded::Engine& engine() const { return *built_.engine; }
+  bridge::HybridSystem& hybrid() { return *hybrid_; }
+  const bridge::HybridSystem& hybrid() const { return *hybrid_; }
+  const Schedule& schedule() const { return schedule_; }
+  /// What was built: particle and bond counts at build time, ice layers, the structure.
+  const Built& built() const { return built_; }
+  /// What the blocks came from (ridge file, list), the hybrid settings and the joints.
+  const BlockSetup& blocks() const { return blocks_; }
+  /// Warnings found while building (for the user; not errors).
+  const std::vector<std::string>& warnings() const { return blocks_.warnings; }
+
+  bool has_structure() const { return built_.structure >= 0; }
+  bool has_blocks() const { return hybrid_->has_rigid(); }
+  const std::vector<std::string>& structure_parts() const { return built_.structure_parts; }
+  double structure_radius() const { return built_.structure_radius; }
+  const Vec3& structure_position() const;
+  /// Total load on the structure (particles + blocks); requires has_structure().
+  StructureLoad structure_load() const;
+
+ private:
+  friend Simulation build_simulation(const scene::Scene&, const par::Comm&, const BuildOptions&);
+  Built built_;
+  BlockSetup blocks_;
+  std::unique_ptr<bridge::HybridSystem> hybrid_;
+  Schedule schedule_;
+};
+
+/// Builds the scene: the engine (particles, walls, structure), the blocks and the hybrid system
+/// (all_at_start converts them here), then spreads the particles over the ranks of `comm`
+/// (every rank builds the whole scene and keeps its share). Throws hs::InputError.
+Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt = {});
+
+}  // namespace hs::sim
