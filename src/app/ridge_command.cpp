@@ -3,7 +3,7 @@
 #include "common/did_you_mean.h"
 #include "common/error.h"
 #include "rigid/ridge.h"
-#include "rigid/ridge_io.h"
+#include "io/ridge_file.h"
 
 #include <nlohmann/json.hpp>
 
@@ -42,7 +42,7 @@ int ridge_command(const std::string& scene_path, const std::string& output, std:
   const rigid::RidgeResult r = rigid::generate_ridge(def, progress);
   if (tty) std::fprintf(stderr, "\n");
   const std::string path = output.empty() ? name + "_ridge.h5" : output;
-  rigid::save_ridge(path, r);
+  io::save_ridge(path, r);
   nlohmann::json rep = rigid::ridge_report(r);
   rep["output"] = path;
   out << rep.dump(2) << std::endl;

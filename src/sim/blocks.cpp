@@ -2,7 +2,7 @@
 
 #include "common/error.h"
 #include "mesh/pier.h"
-#include "rigid/ridge_io.h"
+#include "io/ridge_file.h"
 
 #include <cmath>
 #include <sstream>
@@ -78,7 +78,7 @@ void add_block(BlockSetup& out, const Vec3& half, const Vec3& x, const Quat& q, 
 /// shifted by the offset, with their joints to each other and to the ice sheet.
 void add_ridge_blocks(BlockSetup& out, const scene::Scene& s) {
   const auto& b = s.blocks;
-  const rigid::RidgeResult r = rigid::load_ridge(b.ridge_file_path);
+  const rigid::RidgeResult r = io::load_ridge(b.ridge_file_path);
   out.ridge_blocks_in_file = r.blocks.size();
   std::vector<long> kept(r.blocks.size(), -1);  // ridge row -> index in out.blocks
   for (std::size_t k = 0; k < r.blocks.size(); ++k) {

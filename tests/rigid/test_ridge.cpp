@@ -1,8 +1,8 @@
 // Ridge generator: reproducibility, porosity/profile sanity, no overlap after settling,
 // block-size sampling, CSV profile errors, JSON validation, HDF5 round trip.
 #include "common/error.h"
+#include "io/ridge_file.h"
 #include "rigid/ridge.h"
-#include "rigid/ridge_io.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -177,8 +177,8 @@ TEST(Ridge, SaveLoadRoundTripBitExact) {
   const RidgeResult& r = small_ridge();
   const std::string path =
       (std::filesystem::temp_directory_path() / ("hs_ridge_" + std::to_string(::getpid()) + ".h5")).string();
-  save_ridge(path, r);
-  const RidgeResult l = load_ridge(path);
+  io::save_ridge(path, r);
+  const RidgeResult l = io::load_ridge(path);
   std::filesystem::remove(path);
   EXPECT_TRUE(bit_equal(flatten(r), flatten(l)));
   ASSERT_EQ(l.ice.size(), r.ice.size());
@@ -192,7 +192,7 @@ TEST(Ridge, SaveLoadRoundTripBitExact) {
   EXPECT_TRUE(bit_equal(l.profile.x, r.profile.x));
   EXPECT_TRUE(bit_equal(l.profile.keel_target, r.profile.keel_target));
   EXPECT_TRUE(bit_equal(l.profile.sail_target, r.profile.sail_target));
-  EXPECT_THROW(load_ridge(path), InputError);
+  EXPECT_THROW(io::load_ridge(path), InputError);
 }
 
 TEST(Ridge, LognormalAspectMatchesRequest) {
@@ -322,7 +322,7 @@ TEST(RidgeManual, DISABLED_BuildScene) {
                  p.kinetic_energy_per_block, p.blocks);
   });
   std::printf("%s\n", ridge_report(r).dump(2).c_str());
-  if (out) save_ridge(out, r);
+  if (out) io::save_ridge(out, r);
 }
 }  // namespace
 }  // namespace hs::rigid

@@ -1,4 +1,4 @@
-// Ridge file (HDF5): a generated ridge that any scene can load.
+// Ridge file (HDF5): a generated ridge (rigid/ridge.h) that any scene can load.
 //
 // Layout (file_format "hybridsim-ridge/1", HDF5 1.8 format, all doubles native 64-bit):
 //   /ridge                       attributes file_format, definition (RidgeDef as JSON,
@@ -23,12 +23,12 @@
 
 #include <string>
 
-namespace hs::rigid {
+namespace hs::io {
 
 /// Writes (truncates) the ridge file. Throws hs::InputError(path, ...) if it cannot be
 /// created, std::runtime_error on other HDF5 failures.
-void save_ridge(const std::string& path, const RidgeResult& r);
+void save_ridge(const std::string& path, const rigid::RidgeResult& r);
 /// Reads a ridge file. Throws hs::InputError(path, ...) for a missing or malformed file.
-RidgeResult load_ridge(const std::string& path);
+rigid::RidgeResult load_ridge(const std::string& path);
 
-}  // namespace hs::rigid
+}  // namespace hs::io

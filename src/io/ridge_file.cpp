@@ -1,36 +1,31 @@
-// Ridge file: see ridge_io.h for the layout. HDF5 C API.
-#include "rigid/ridge_io.h"
+// Ridge file: see ridge_file.h for the layout. HDF5 C API, through io/h5_handle.h.
+#include "io/ridge_file.h"
 
 #include "common/error.h"
-
-#include <hdf5.h>
+#include "io/h5_handle.h"
 
 #include <stdexcept>
 #include <type_traits>
 #include <utility>
 #include <vector>
 
-namespace hs::rigid {
+namespace hs::io {
+
+using rigid::IceBox;
+using rigid::RidgeBlock;
+using rigid::RidgeJoint;
+using rigid::RidgeProfile;
+using rigid::RidgeResult;
+using rigid::RidgeStats;
+using rigid::ridge_def_from_json;
+using rigid::ridge_def_to_json;
+using rigid::ridge_report;
 
 namespace {
 
 constexpr const char* kFormat = "hybridsim-ridge/1";
 
-class H {
- public:
-  using Closer = herr_t (*)(hid_t);
-  H(hid_t id, Closer c) : id_(id), c_(c) {}
-  H(const H&) = delete;
-  H& operator=(const H&) = delete;
-  ~H() {
-    if (id_ >= 0) c_(id_);
-  }
-  hid_t get() const { return id_; }
-
- private:
-  hid_t id_;
-  Closer c_;
-};
+using H = h5::Handle;
 
 struct Ctx {
   std::string file;
@@ -325,4 +320,4 @@ RidgeResult load_ridge(const std::string& path) {
   return r;
 }
 
-}  // namespace hs::rigid
+}  // namespace hs::io
