@@ -1,0 +1,108 @@
+// A short run whose output must stay bit-identical while the code around it is refactored
+// (issue 12): the ice sheet, a moving pier, a wall, two rigid blocks (one lands on the ice),
+// snapshots. Its /series hash and the hash of every dataset in the file (tools/series_hash.py;
+// attributes are not hashed: they hold wall times) are pinned.
+//
+// The hashes depend on the compiler (and its version) and on the instruction set the build
+// targets (HYBRIDSIM_NATIVE = -march=native: Eigen's vector paths and fused multiply-adds), so
+// they are pinned per build fingerprint (compiler + ISA macros). A build whose fingerprint has
+// no pinned line skips the test and prints the line to add; a pinned build whose hash changed
+// fails with the commands that show which series changed. When a change is meant to alter
+// results, regenerate the line (README, "Tests").
+#include <gtest/gtest.h>
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace fs = std::filesystem;
+
+namespace {
+
+struct Pinned {
+  const char* fingerprint;
+  const char* series;  ///< series_hash.py out.h5 (group /series)
+  const char* all;     ///< series_hash.py out.h5 --group /
+};
+
+// One line per build target; add one with the values a skipped run prints.
+constexpr Pinned kPinned[] = {
+    {"GCC 12.2.0 fma avx2 avx512f", "14e4292ce4e4031e2b943cbd63c075792d1c7df4c564e409740365afb1bf5895",
+     "3447589c5daa226adb9cef2e3fc2a7cb5b64fc26fc0e12854285696eee73f13c"},
+};
+
+std::string fingerprint() {
+  std::string f;
+#if defined(__clang__)
+  f = std::string("Clang ") + __clang_version__;
+#elif defined(__GNUC__)
+  f = std::string("GCC ") + std::to_string(__GNUC__) + "." + std::to_string(__GNUC_MINOR__) + "." +
+      std::to_string(__GNUC_PATCHLEVEL__);
+#else
+  f = "unknown compiler";
+#endif
+#ifdef __FMA__
+  f += " fma";
+#endif
+#ifdef __AVX2__
+  f += " avx2";
+#endif
+#ifdef __AVX512F__
+  f += " avx512f";
+#endif
+  return f;
+}
+
+fs::path work_dir() {
+  const fs::path d = fs::temp_directory_path() / ("hs_test_pinned_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+int shell(const std::string& cmd) {
+  const int status = std::system(cmd.c_str());
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+std::string first_word(const fs::path& p) {
+  std::ifstream in(p);
+  std::string w;
+  in >> w;
+  return w;
+}
+
+}  // namespace
+
+TEST(PinnedRun, OutputIsBitIdentical) {
+  const fs::path d = work_dir();
+  const std::string scene = HYBRIDSIM_SOURCE_DIR "/tests/app/pinned_run.json";
+  const std::string hash = "/usr/bin/python3 " HYBRIDSIM_SOURCE_DIR "/tools/series_hash.py";
+  const std::string in_dir = "cd '" + d.string() + "' && ";
+  ASSERT_EQ(shell(in_dir + "'" HYBRIDSIM_EXE "' run '" + scene + "' -o pinned.h5 > out.txt 2> err.txt"), 0)
+      << "the pinned run failed; see " << (d / "err.txt");
+  ASSERT_EQ(shell(in_dir + hash + " pinned.h5 > series.txt && " + hash + " pinned.h5 --group / > all.txt"), 0)
+      << "tools/series_hash.py failed (needs /usr/bin/python3 with h5py)";
+  const std::string series = first_word(d / "series.txt"), all = first_word(d / "all.txt");
+  const std::string fp = fingerprint();
+  const Pinned* pin = nullptr;
+  for (const auto& p : kPinned)
+    if (fp == p.fingerprint) pin = &p;
+  if (!pin)
+    GTEST_SKIP() << "no pinned hashes for this build (" << fp << "). If this build's results are right, add to "
+                 << "kPinned in tests/app/test_pinned_run.cpp:\n    {\"" << fp << "\", \"" << series << "\",\n     \""
+                 << all << "\"},";
+  const std::string how =
+      "\nThe output of tests/app/pinned_run.json changed (build " + fp + "). To see which datasets changed, run "
+      "the scene with this build and with the last good one and compare:\n  build/hybridsim run "
+      "tests/app/pinned_run.json -o new.h5 && /usr/bin/python3 tools/series_hash.py new.h5 --group / -v\n"
+      "If the change is meant to alter results (or the compiler changed), put the new hashes into kPinned in "
+      "tests/app/test_pinned_run.cpp and say so in the commit message.";
+  EXPECT_EQ(series, pin->series) << "/series hash" << how;
+  EXPECT_EQ(all, pin->all) << "hash of every dataset (--group /)" << how;
+  fs::remove_all(d);
+}
