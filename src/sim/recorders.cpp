@@ -119,7 +119,8 @@ class StructureLoadRecorder : public Recorder {
     }
   }
   void after_step(const Simulation& sim) override {
-    const StructureLoad L = sim.structure_load();
+    sim.structure_load(load_);
+    const StructureLoad& L = load_;
     force_.sum += L.force;
     moment_.sum += L.moment;
     for (std::size_t q = 0; q < parts_.size(); ++q) {
@@ -136,7 +137,8 @@ class StructureLoadRecorder : public Recorder {
     ++n_;
   }
   void write(Simulation& sim, io::RunFile& f) override {
-    const StructureLoad L = sim.structure_load();
+    sim.structure_load(load_);
+    const StructureLoad& L = load_;
     const Vec3 force = force_.take(n_, L.force), moment = moment_.take(n_, L.moment);
     f.append(id_force_, force.data());
     f.append(id_moment_, moment.data());
@@ -162,6 +164,7 @@ class StructureLoadRecorder : public Recorder {
 
  private:
   std::vector<std::string> parts_;
+  StructureLoad load_;  ///< this step's, reused
   Mean3 force_, moment_;
   std::vector<Mean3> pf_, pm_;
   int id_force_ = -1, id_moment_ = -1;

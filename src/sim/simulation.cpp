@@ -20,11 +20,10 @@ Schedule schedule(const scene::TimeDef& t, double dt) {
 
 const Vec3& Simulation::structure_position() const { return engine().mesh_wall_position(built_.structure); }
 
-StructureLoad Simulation::structure_load() const {
+void Simulation::structure_load(StructureLoad& out) const {
   const auto& L = engine().mesh_wall_load(built_.structure);
   const auto& bpf = hybrid_->structure_part_force();
   const auto& bpm = hybrid_->structure_part_moment();
-  StructureLoad out;
   out.force = L.force + hybrid_->structure_force();
   out.moment = L.moment + hybrid_->structure_moment();
   const std::size_t n = built_.structure_parts.size();
@@ -34,7 +33,6 @@ StructureLoad Simulation::structure_load() const {
     out.part_force[q] = L.part_force[q] + (q < bpf.size() ? bpf[q] : Vec3::Zero());
     out.part_moment[q] = L.part_moment[q] + (q < bpm.size() ? bpm[q] : Vec3::Zero());
   }
-  return out;
 }
 
 Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {

@@ -69,8 +69,9 @@ class Simulation {
   const std::vector<std::string>& structure_parts() const { return built_.structure_parts; }
   double structure_radius() const { return built_.structure_radius; }
   const Vec3& structure_position() const;
-  /// Total load on the structure (particles + blocks); requires has_structure().
-  StructureLoad structure_load() const;
+  /// Total load on the structure (particles + blocks) into `out` (its vectors are reused:
+  /// called every step); requires has_structure().
+  void structure_load(StructureLoad& out) const;
 
  private:
   friend Simulation build_simulation(const scene::Scene&, const par::Comm&, const BuildOptions&);
