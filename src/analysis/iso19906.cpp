@@ -1,8 +1,8 @@
 // ISO 19906 cone loads; equations and sources in iso19906.h.
 #include "analysis/iso19906.h"
 
-#include "common/did_you_mean.h"
 #include "common/error.h"
+#include "json/reader.h"
 
 #include <array>
 #include <cmath>
@@ -15,25 +15,32 @@ namespace {
 
 using Member = double IsoInputs::*;
 
+/// One input: JSON key, field and unit (for messages).
+struct Field {
+  const char* key;
+  Member member;
+  const char* unit;
+};
+
 /// JSON key <-> field, in declaration order; the one list that keeps names in step.
-constexpr std::array<std::pair<const char*, Member>, 17> kFields{{
-    {"thickness", &IsoInputs::thickness},
-    {"waterline_diameter", &IsoInputs::waterline_diameter},
-    {"flexural_strength", &IsoInputs::flexural_strength},
-    {"youngs_modulus", &IsoInputs::youngs_modulus},
-    {"poisson_ratio", &IsoInputs::poisson_ratio},
-    {"cone_angle_deg", &IsoInputs::cone_angle_deg},
-    {"friction_ice_structure", &IsoInputs::friction_ice_structure},
-    {"friction_ice_ice", &IsoInputs::friction_ice_ice},
-    {"ice_density", &IsoInputs::ice_density},
-    {"water_density", &IsoInputs::water_density},
-    {"gravity", &IsoInputs::gravity},
-    {"rubble_height", &IsoInputs::rubble_height},
-    {"rubble_porosity", &IsoInputs::rubble_porosity},
-    {"rubble_cohesion", &IsoInputs::rubble_cohesion},
-    {"rubble_slope_deg", &IsoInputs::rubble_slope_deg},
-    {"rubble_friction_angle_deg", &IsoInputs::rubble_friction_angle_deg},
-    {"keel_depth", &IsoInputs::keel_depth},
+constexpr std::array<Field, 17> kFields{{
+    {"thickness", &IsoInputs::thickness, "m"},
+    {"waterline_diameter", &IsoInputs::waterline_diameter, "m"},
+    {"flexural_strength", &IsoInputs::flexural_strength, "Pa"},
+    {"youngs_modulus", &IsoInputs::youngs_modulus, "Pa"},
+    {"poisson_ratio", &IsoInputs::poisson_ratio, ""},
+    {"cone_angle_deg", &IsoInputs::cone_angle_deg, "deg"},
+    {"friction_ice_structure", &IsoInputs::friction_ice_structure, ""},
+    {"friction_ice_ice", &IsoInputs::friction_ice_ice, ""},
+    {"ice_density", &IsoInputs::ice_density, "kg/m^3"},
+    {"water_density", &IsoInputs::water_density, "kg/m^3"},
+    {"gravity", &IsoInputs::gravity, "m/s^2"},
+    {"rubble_height", &IsoInputs::rubble_height, "m"},
+    {"rubble_porosity", &IsoInputs::rubble_porosity, ""},
+    {"rubble_cohesion", &IsoInputs::rubble_cohesion, "Pa"},
+    {"rubble_slope_deg", &IsoInputs::rubble_slope_deg, "deg"},
+    {"rubble_friction_angle_deg", &IsoInputs::rubble_friction_angle_deg, "deg"},
+    {"keel_depth", &IsoInputs::keel_depth, "m"},
 }};
 
 constexpr double kDeg = std::numbers::pi / 180.0;
@@ -51,17 +58,6 @@ std::string num(double v) {
     if (back == v) break;
   }
   return text;
-}
-
-/// RFC 6901 escaping of one JSON Pointer token.
-std::string pointer_token(const std::string& key) {
-  std::string out;
-  for (char ch : key) {
-    if (ch == '~') out += "~0";
-    else if (ch == '/') out += "~1";
-    else out += ch;
-  }
-  return out;
 }
 
 class Checker {
@@ -92,7 +88,7 @@ class Checker {
 const std::vector<std::string>& iso_input_keys() {
   static const std::vector<std::string> keys = [] {
     std::vector<std::string> k;
-    for (const auto& f : kFields) k.emplace_back(f.first);
+    for (const auto& f : kFields) k.emplace_back(f.key);
     return k;
   }();
   return keys;
@@ -100,7 +96,7 @@ const std::vector<std::string>& iso_input_keys() {
 
 void validate_iso_inputs(const IsoInputs& in, const std::string& base_path) {
   const Checker c(base_path);
-  for (const auto& [key, member] : kFields) c.finite(key, in.*member);
+  for (const auto& f : kFields) c.finite(f.key, in.*f.member);
 
   c.positive("thickness", in.thickness, "(m)");
   c.positive("waterline_diameter", in.waterline_diameter, "(m)");
@@ -202,36 +198,18 @@ IsoResult compute_iso(const IsoInputs& in) {
 }
 
 IsoInputs iso_inputs_from_json(const nlohmann::json& j, const std::string& base_path) {
-  if (!j.is_object())
-    throw InputError(base_path, std::string("expected a JSON object of ISO 19906 inputs, got ") +
-                                    j.type_name());
+  const std::string hint = "ISO 19906 inputs are plain numbers in SI units (docs/iso19906.md)";
+  const JsonObject o(j, base_path, iso_input_keys(), "an ISO 19906 input file is one object of numbers, e.g. "
+                                                     "{\"thickness\": 0.6}; see docs/iso19906.md");
   IsoInputs in;
-  const auto& keys = iso_input_keys();
-  for (const auto& [key, value] : j.items()) {
-    const std::string path = base_path + "/" + pointer_token(key);
-    Member member = nullptr;
-    for (const auto& f : kFields)
-      if (key == f.first) member = f.second;
-    if (member == nullptr) {
-      const std::string hint = did_you_mean(key, keys);
-      std::string msg = "unknown key \"" + key + "\"" + hint;
-      if (hint.empty()) {
-        msg += "; allowed keys:";
-        for (const auto& k : keys) msg += " " + k;
-      }
-      throw InputError(path, msg);
-    }
-    if (!value.is_number())
-      throw InputError(path, std::string("must be a number (SI units), got ") + value.type_name());
-    in.*member = value.get<double>();
-  }
+  for (const auto& f : kFields) in.*f.member = o.number(f.key, in.*f.member, JsonRange::any(), f.unit, hint);
   validate_iso_inputs(in, base_path);
   return in;
 }
 
 nlohmann::json iso_inputs_to_json(const IsoInputs& in) {
   nlohmann::json j = nlohmann::json::object();
-  for (const auto& [key, member] : kFields) j[key] = in.*member;
+  for (const auto& f : kFields) j[f.key] = in.*f.member;
   return j;
 }
 

@@ -1,8 +1,8 @@
 // Ridge generator: see ridge.h and docs/ridge.md.
 #include "rigid/ridge.h"
 
-#include "common/did_you_mean.h"
 #include "common/error.h"
+#include "json/reader.h"
 #include "rigid/rigid_world.h"
 
 #include <algorithm>
@@ -950,92 +950,51 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
 }
 
 // ---------------------------------------------------------------- JSON
+// Read with the shared reader (src/json/reader.h): JSON-pointer errors, did-you-mean on
+// unknown keys, units in the messages. A null value means "not given" (ridge_def_to_json
+// writes null for keel_width / sail_width). Ranges and cross-field rules are validate()'s.
 namespace {
 
-class JsonReader {
- public:
-  JsonReader(const nlohmann::json& j, std::string path, std::vector<std::string> allowed)
-      : j_(j), path_(std::move(path)) {
-    if (!j_.is_object()) throw InputError(path_, "must be a JSON object");
-    for (auto it = j_.begin(); it != j_.end(); ++it)
-      if (std::find(allowed.begin(), allowed.end(), it.key()) == allowed.end())
-        throw InputError(path_ + "/" + it.key(), "unknown key \"" + it.key() + "\"" +
-                                                     did_you_mean(it.key(), allowed));
-  }
-  bool has(const char* k) const { return j_.contains(k) && !j_.at(k).is_null(); }
-  std::string at(const char* k) const { return path_ + "/" + k; }
-  void number(const char* k, double& out) const {
-    if (!has(k)) return;
-    const auto& v = j_.at(k);
-    if (!v.is_number()) throw InputError(at(k), "must be a number");
-    out = v.get<double>();
-    if (!std::isfinite(out)) throw InputError(at(k), "must be finite");
-  }
-  void integer(const char* k, int& out) const {
-    if (!has(k)) return;
-    const auto& v = j_.at(k);
-    if (!v.is_number_integer()) throw InputError(at(k), "must be an integer");
-    out = v.get<int>();
-  }
-  void boolean(const char* k, bool& out) const {
-    if (!has(k)) return;
-    const auto& v = j_.at(k);
-    if (!v.is_boolean()) throw InputError(at(k), "must be true or false");
-    out = v.get<bool>();
-  }
-  void string(const char* k, std::string& out) const {
-    if (!has(k)) return;
-    const auto& v = j_.at(k);
-    if (!v.is_string()) throw InputError(at(k), "must be a string");
-    out = v.get<std::string>();
-  }
-  const nlohmann::json& get(const char* k) const { return j_.at(k); }
+using Range = JsonRange;
+const char* const kRidgeHelp = "see docs/ridge.md for the fields of a ridge definition";
 
- private:
-  const nlohmann::json& j_;
-  std::string path_;
-};
+const std::vector<std::string>& ridge_keys() {
+  static const std::vector<std::string> k = {
+      "name", "level_ice_thickness", "consolidated_layer_thickness", "consolidated_layer_width", "level_ice_margin",
+      "ice_density", "water_density", "keel_depth", "keel_width", "shoulder_slope_deg", "keel_profile_csv",
+      "keel_profile", "sail_height", "sail_width", "sail_slope_deg", "length", "end_walls", "block_thickness",
+      "aspect_lognormal", "block_width_fraction", "max_tilt_deg", "fill_porosity", "placement_candidates", "seed",
+      "settle", "joints", "profile_bin", "porosity_grid"};
+  return k;
+}
 
-}  // namespace
+void read_ridge_ice(const JsonObject& r, RidgeDef& d) {
+  d.name = r.string("name", d.name, false, "free text, e.g. the scene name");
+  d.level_ice_thickness = r.number("level_ice_thickness", d.level_ice_thickness, Range::any(), "m", "e.g. 0.6");
+  d.consolidated_layer_thickness = r.number("consolidated_layer_thickness", d.consolidated_layer_thickness,
+                                            Range::any(), "m", "e.g. 0.9");
+  d.consolidated_layer_width = r.number("consolidated_layer_width", d.consolidated_layer_width, Range::any(), "m",
+                                        "width of the layer, centred on x = 0, e.g. 20");
+  d.level_ice_margin = r.number("level_ice_margin", d.level_ice_margin, Range::any(), "m",
+                                "level ice beyond the keel and sail on each side, e.g. 10");
+  d.ice_density = r.number("ice_density", d.ice_density, Range::any(), "kg/m^3", "e.g. 910");
+  d.water_density = r.number("water_density", d.water_density, Range::any(), "kg/m^3", "e.g. 1025");
+}
 
-RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, const std::string& base_dir) {
-  RidgeDef d;
-  const JsonReader r(j, P,
-                     {"name", "level_ice_thickness", "consolidated_layer_thickness",
-                      "consolidated_layer_width", "level_ice_margin", "ice_density", "water_density",
-                      "keel_depth", "keel_width", "shoulder_slope_deg", "keel_profile_csv",
-                      "keel_profile", "sail_height", "sail_width", "sail_slope_deg", "length",
-                      "end_walls", "block_thickness", "aspect_lognormal", "block_width_fraction",
-                      "max_tilt_deg", "fill_porosity", "placement_candidates", "seed", "settle", "joints", "profile_bin", "porosity_grid"});
-  r.string("name", d.name);
-  r.number("level_ice_thickness", d.level_ice_thickness);
-  r.number("consolidated_layer_thickness", d.consolidated_layer_thickness);
-  r.number("consolidated_layer_width", d.consolidated_layer_width);
-  r.number("level_ice_margin", d.level_ice_margin);
-  r.number("ice_density", d.ice_density);
-  r.number("water_density", d.water_density);
-  r.number("keel_depth", d.keel_depth);
-  if (r.has("keel_width")) {
-    r.number("keel_width", d.keel_width);
-    if (!(d.keel_width > 0.0)) throw InputError(r.at("keel_width"), "must be > 0 (m), or null");
-  }
-  r.number("shoulder_slope_deg", d.shoulder_slope_deg);
-  d.sail_slope_deg = d.shoulder_slope_deg;
-  d.sail_height = d.keel_depth / 4.4;
-  d.block_thickness = d.level_ice_thickness;
-  r.string("keel_profile_csv", d.keel_profile_csv);
+void read_keel_profile(const JsonObject& r, RidgeDef& d, const std::string& base_dir) {
+  d.keel_profile_csv = r.string("keel_profile_csv", d.keel_profile_csv, false,
+                                "a CSV file of position_m, depth_m, relative to the scene's directory");
   if (r.has("keel_profile")) {
-    const auto& a = r.get("keel_profile");
-    if (!a.is_array()) throw InputError(r.at("keel_profile"), "must be an array of [position_m, depth_m]");
+    const nlohmann::json& a = r.array("keel_profile", "[position_m, depth_m] points");
     for (std::size_t i = 0; i < a.size(); ++i) {
-      const auto& e = a[i];
       const std::string ep = r.at("keel_profile") + "/" + std::to_string(i);
-      if (!e.is_array() || e.size() != 2 || !e[0].is_number() || !e[1].is_number())
-        throw InputError(ep, "must be [position_m, depth_m]");
-      ProfilePoint pt{e[0].get<double>(), e[1].get<double>()};
-      if (pt.depth < 0.0) throw InputError(ep, "depth must be >= 0");
+      const Eigen::Vector2d e = json_vector<2>(a[i], ep, "m", "a profile point [position_m, depth_m]");
+      const ProfilePoint pt{e[0], e[1]};
+      if (pt.depth < 0.0)
+        throw InputError(ep, "depth " + json_fmt(pt.depth) + " m must be >= 0 (m below the waterline)");
       if (!d.keel_profile.empty() && !(pt.position > d.keel_profile.back().position))
-        throw InputError(ep, "positions must increase strictly");
+        throw InputError(ep, "position " + json_fmt(pt.position) + " m must be greater than the previous point's " +
+                                 json_fmt(d.keel_profile.back().position) + " m: positions must increase strictly");
       d.keel_profile.push_back(pt);
     }
   } else if (!d.keel_profile_csv.empty()) {
@@ -1043,71 +1002,92 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
     if (p.is_relative() && !base_dir.empty()) p = std::filesystem::path(base_dir) / p;
     d.keel_profile = load_profile_csv(p.string());
   }
-  r.number("sail_height", d.sail_height);
-  if (r.has("sail_width")) {
-    r.number("sail_width", d.sail_width);
-    if (!(d.sail_width > 0.0)) throw InputError(r.at("sail_width"), "must be > 0 (m), or null");
-  }
-  r.number("sail_slope_deg", d.sail_slope_deg);
-  r.number("length", d.length);
-  r.boolean("end_walls", d.end_walls);
-  r.number("block_thickness", d.block_thickness);
+}
+
+/// Keel and sail envelopes; the sail's defaults follow the keel's.
+void read_ridge_shape(const JsonObject& r, RidgeDef& d, const std::string& base_dir) {
+  d.keel_depth = r.number("keel_depth", d.keel_depth, Range::any(), "m", "keel depth below the waterline, e.g. 7.9");
+  d.keel_width = r.number("keel_width", d.keel_width, Range::positive(), "m",
+                          "keel width at the ice underside, or null for a triangle from shoulder_slope_deg");
+  d.shoulder_slope_deg = r.number("shoulder_slope_deg", d.shoulder_slope_deg, Range::any(), "deg", "e.g. 6");
+  d.sail_slope_deg = d.shoulder_slope_deg;
+  d.sail_height = d.keel_depth / 4.4;
+  read_keel_profile(r, d, base_dir);
+  d.sail_height = r.number("sail_height", d.sail_height, Range::any(), "m",
+                           "sail height above the waterline (default keel_depth / 4.4), 0 for no sail");
+  d.sail_width = r.number("sail_width", d.sail_width, Range::positive(), "m",
+                          "sail width at the ice top, or null for a triangle from sail_slope_deg");
+  d.sail_slope_deg = r.number("sail_slope_deg", d.sail_slope_deg, Range::any(), "deg", "default shoulder_slope_deg");
+  d.length = r.number("length", d.length, Range::any(), "m", "extent along the ridge (y), e.g. 200");
+  d.end_walls = r.boolean("end_walls", d.end_walls);
+}
+
+void read_ridge_blocks(const JsonObject& r, RidgeDef& d) {
+  d.block_thickness = r.number("block_thickness", d.level_ice_thickness, Range::any(), "m",
+                               "default level_ice_thickness");
   if (r.has("aspect_lognormal")) {
-    const JsonReader a(r.get("aspect_lognormal"), r.at("aspect_lognormal"), {"mu", "sigma", "of"});
-    a.number("mu", d.aspect.mu);
-    a.number("sigma", d.aspect.sigma);
-    std::string of = "log";
-    a.string("of", of);
-    if (of != "log" && of != "ratio")
-      throw InputError(a.at("of"), "must be \"log\" (ln(L/h) ~ N(mu, sigma)) or \"ratio\" (L/h has mean mu, sd sigma)");
-    d.aspect.of_log = of == "log";
+    const JsonObject a = r.object("aspect_lognormal", {"mu", "sigma", "of"}, kRidgeHelp);
+    d.aspect.mu = a.number("mu", d.aspect.mu, Range::any(), "", "e.g. 1.06");
+    d.aspect.sigma = a.number("sigma", d.aspect.sigma, Range::any(), "", "e.g. 0.5");
+    d.aspect.of_log = a.choice("of", "log", {"log", "ratio"},
+                               "\"log\": ln(L/h) ~ N(mu, sigma); \"ratio\": L/h has mean mu and sd sigma") == "log";
   }
-  if (r.has("block_width_fraction")) {
-    const auto& a = r.get("block_width_fraction");
-    if (!a.is_array() || a.size() != 2 || !a[0].is_number() || !a[1].is_number())
-      throw InputError(r.at("block_width_fraction"), "must be [min, max] (block width / length)");
-    d.width_fraction_min = a[0].get<double>();
-    d.width_fraction_max = a[1].get<double>();
-  }
-  r.number("max_tilt_deg", d.max_tilt_deg);
-  r.number("fill_porosity", d.fill_porosity);
-  r.integer("placement_candidates", d.placement_candidates);
-  if (r.has("seed")) {
-    const auto& v = r.get("seed");
-    if (!v.is_number_integer() || (v.is_number_integer() && !v.is_number_unsigned() && v.get<std::int64_t>() < 0))
-      throw InputError(r.at("seed"), "must be a non-negative integer");
-    d.seed = v.get<std::uint64_t>();
-  }
-  if (r.has("settle")) {
-    const JsonReader s(r.get("settle"), r.at("settle"),
-                       {"dt", "solver_iterations", "kinetic_energy_per_block", "min_time", "max_time",
-                        "friction", "linear_drag", "quadratic_drag_cd", "speed_cap_factor",
-                        "allow_sleep", "compaction_friction", "compaction_time", "compaction_solver_iterations",
-                        "damping", "fixed_friction_directions"});
-    s.number("dt", d.settle.dt);
-    s.integer("solver_iterations", d.settle.solver_iterations);
-    s.number("kinetic_energy_per_block", d.settle.kinetic_energy_per_block);
-    s.number("min_time", d.settle.min_time);
-    s.number("max_time", d.settle.max_time);
-    s.number("friction", d.settle.friction);
-    s.number("linear_drag", d.settle.linear_drag);
-    s.number("quadratic_drag_cd", d.settle.quadratic_drag_cd);
-    s.number("speed_cap_factor", d.settle.speed_cap_factor);
-    s.boolean("allow_sleep", d.settle.allow_sleep);
-    s.number("compaction_friction", d.settle.compaction_friction);
-    s.number("compaction_time", d.settle.compaction_time);
-    s.number("damping", d.settle.damping);
-    s.boolean("fixed_friction_directions", d.settle.fixed_friction_directions);
-    s.integer("compaction_solver_iterations", d.settle.compaction_solver_iterations);
-  }
+  const Eigen::Vector2d wf = r.vec<2>("block_width_fraction",
+                                      Eigen::Vector2d(d.width_fraction_min, d.width_fraction_max), "",
+                                      "[min, max] of block width / length, e.g. [0.5, 1]");
+  d.width_fraction_min = wf[0];
+  d.width_fraction_max = wf[1];
+  d.max_tilt_deg = r.number("max_tilt_deg", d.max_tilt_deg, Range::any(), "deg", "90 for random orientations");
+  d.fill_porosity = r.number("fill_porosity", d.fill_porosity, Range::any(), "", "e.g. 0.4");
+  d.placement_candidates = r.integer<int>("placement_candidates", d.placement_candidates, Range::any(), "",
+                                          "poses tried per block, e.g. 8");
+  d.seed = r.integer<std::uint64_t>("seed", d.seed, Range::non_negative(), "", "a whole number >= 0, e.g. 1");
+}
+
+void read_ridge_settle(const JsonObject& r, RidgeSettleDef& s) {
+  const JsonObject o = r.object("settle",
+                                {"dt", "solver_iterations", "kinetic_energy_per_block", "min_time", "max_time",
+                                 "friction", "linear_drag", "quadratic_drag_cd", "speed_cap_factor", "allow_sleep",
+                                 "compaction_friction", "compaction_time", "compaction_solver_iterations", "damping",
+                                 "fixed_friction_directions"},
+                                kRidgeHelp);
+  const std::string hint = "see docs/ridge.md, settle";
+  s.dt = o.number("dt", s.dt, Range::any(), "s", "rigid time step, e.g. 0.0333");
+  s.solver_iterations = o.integer<int>("solver_iterations", s.solver_iterations, Range::any(), "", "e.g. 20");
+  s.kinetic_energy_per_block =
+      o.number("kinetic_energy_per_block", s.kinetic_energy_per_block, Range::any(), "J", "settled below, e.g. 0.01");
+  s.min_time = o.number("min_time", s.min_time, Range::any(), "s", hint);
+  s.max_time = o.number("max_time", s.max_time, Range::any(), "s", hint);
+  s.friction = o.number("friction", s.friction, Range::any(), "", "ice-ice Coulomb coefficient, e.g. 0.5");
+  s.linear_drag = o.number("linear_drag", s.linear_drag, Range::any(), "Pa s/m", "e.g. 1000");
+  s.quadratic_drag_cd = o.number("quadratic_drag_cd", s.quadratic_drag_cd, Range::any(), "", "e.g. 1");
+  s.speed_cap_factor = o.number("speed_cap_factor", s.speed_cap_factor, Range::any(), "", "e.g. 0.25");
+  s.allow_sleep = o.boolean("allow_sleep", s.allow_sleep);
+  s.compaction_friction = o.number("compaction_friction", s.compaction_friction, Range::any(), "", "e.g. 0");
+  s.compaction_time = o.number("compaction_time", s.compaction_time, Range::any(), "s", "0 for no compaction phase");
+  s.damping = o.number("damping", s.damping, Range::any(), "1/s", "e.g. 5");
+  s.fixed_friction_directions = o.boolean("fixed_friction_directions", s.fixed_friction_directions);
+  s.compaction_solver_iterations =
+      o.integer<int>("compaction_solver_iterations", s.compaction_solver_iterations, Range::any(), "", "e.g. 10");
+}
+
+}  // namespace
+
+RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, const std::string& base_dir) {
+  RidgeDef d;
+  const JsonObject r(j, P, ridge_keys(), kRidgeHelp, JsonNull::IsAbsent);
+  read_ridge_ice(r, d);
+  read_ridge_shape(r, d, base_dir);
+  read_ridge_blocks(r, d);
+  if (r.has("settle")) read_ridge_settle(r, d.settle);
   if (r.has("joints")) {
-    const JsonReader s(r.get("joints"), r.at("joints"), {"gap", "min_area", "to_ice"});
-    s.number("gap", d.joints.gap);
-    s.number("min_area", d.joints.min_area);
-    s.boolean("to_ice", d.joints.to_ice);
+    const JsonObject o = r.object("joints", {"gap", "min_area", "to_ice"}, kRidgeHelp);
+    d.joints.gap = o.number("gap", d.joints.gap, Range::any(), "m", "blocks closer than this touch, e.g. 0.02");
+    d.joints.min_area = o.number("min_area", d.joints.min_area, Range::any(), "m^2", "e.g. 0.01");
+    d.joints.to_ice = o.boolean("to_ice", d.joints.to_ice);
   }
-  r.number("profile_bin", d.profile_bin);
-  r.number("porosity_grid", d.porosity_grid);
+  d.profile_bin = r.number("profile_bin", d.profile_bin, Range::any(), "m", "e.g. 1");
+  d.porosity_grid = r.number("porosity_grid", d.porosity_grid, Range::any(), "m", "e.g. 0.25");
   validate(d, P);
   return d;
 }

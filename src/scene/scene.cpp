@@ -1,17 +1,14 @@
 #include "scene/scene.h"
 
 #include "bonded/hcp_lattice.h"
-#include "common/did_you_mean.h"
 #include "common/error.h"
+#include "json/reader.h"
 
-#include <cerrno>
+#include <algorithm>
 #include <cmath>
-#include <cstring>
 #include <filesystem>
-#include <fstream>
 #include <limits>
 #include <map>
-#include <sstream>
 
 namespace hs::scene {
 
@@ -73,137 +70,16 @@ std::string pattern_of(const std::string& pointer) {
   return out;
 }
 
-std::string show(const json& v) {
-  std::string s = v.dump();
-  if (s.size() > 60) s = s.substr(0, 57) + "...";
-  return s;
+using Range = JsonRange;
+
+/// The reader of the scene object at `pointer`, allowing the keys the schema lists there.
+JsonObject section(const json& j, const std::string& pointer) {
+  return JsonObject(j, pointer, allowed_keys(pointer), "see docs/scene.md for this section's fields");
 }
-
-std::string got(const json& v) {
-  return std::string(v.type_name()) + " " + show(v);
+/// ... of the object at `key` of `parent` (which must be present).
+JsonObject section(const JsonObject& parent, const std::string& key) {
+  return section(parent.raw(key), parent.at(key));
 }
-
-std::string fmt(double x) {
-  std::ostringstream s;
-  s.precision(6);
-  s << x;
-  return s.str();
-}
-
-struct Range {
-  double lo = -INFINITY, hi = INFINITY;
-  bool lo_open = false, hi_open = false;
-  static Range positive() { return {0.0, INFINITY, true, false}; }
-  static Range non_negative() { return {0.0, INFINITY, false, false}; }
-  static Range any() { return {}; }
-  bool contains(double x) const {
-    if (lo_open ? !(x > lo) : !(x >= lo)) return false;
-    if (hi_open ? !(x < hi) : !(x <= hi)) return false;
-    return true;
-  }
-  std::string describe(const std::string& unit) const {
-    const std::string u = unit.empty() ? "" : " " + unit;
-    std::string s;
-    if (std::isfinite(lo)) s += (lo_open ? "> " : ">= ") + fmt(lo) + u;
-    if (std::isfinite(hi)) s += (s.empty() ? "" : " and ") + std::string(hi_open ? "< " : "<= ") + fmt(hi) + u;
-    return s.empty() ? "any finite number" : s;
-  }
-};
-
-/// One JSON object being read: checks unknown keys at construction, then typed getters.
-class Obj {
- public:
-  Obj(const json& j, std::string ptr) : j_(j), ptr_(std::move(ptr)) {
-    if (!j.is_object())
-      throw InputError(ptr_.empty() ? "/" : ptr_, "expected an object {...}, got " + got(j) +
-                                                      "; see docs/scene.md for this section's fields");
-    const auto& allowed = allowed_keys(ptr_);
-    for (const auto& [key, value] : j.items()) {
-      if (std::find(allowed.begin(), allowed.end(), key) == allowed.end()) {
-        std::string list;
-        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-        throw InputError(ptr_ + "/" + key, "unknown key \"" + key + "\"" + did_you_mean(key, allowed) +
-                                               "; allowed here: " + list);
-      }
-    }
-  }
-  const std::string& ptr() const { return ptr_; }
-  std::string at(const std::string& key) const { return ptr_ + "/" + key; }
-  bool has(const std::string& key) const { return j_.contains(key); }
-  const json& raw(const std::string& key) const { return j_.at(key); }
-
-  [[noreturn]] void missing(const std::string& key, const std::string& what) const {
-    throw InputError(at(key), "missing required field \"" + key + "\" (" + what + "); add it to the \"" +
-                                  (ptr_.empty() ? std::string("top level") : ptr_.substr(1)) + "\" object");
-  }
-
-  double number(const std::string& key, double def, Range r, const std::string& unit, const std::string& hint,
-                bool required = false, const std::string& what = "") const {
-    if (!has(key)) {
-      if (required) missing(key, what.empty() ? hint : what);
-      return def;
-    }
-    const json& v = j_.at(key);
-    if (!v.is_number())
-      throw InputError(at(key), "expected a number" + (unit.empty() ? std::string() : " in " + unit) + ", got " +
-                                    got(v) + "; " + hint);
-    const double x = v.get<double>();
-    if (!std::isfinite(x) || !r.contains(x))
-      throw InputError(at(key), "value " + show(v) + (unit.empty() ? "" : " " + unit) + " is out of range: must be " +
-                                    r.describe(unit) + "; " + hint);
-    return x;
-  }
-
-  bool boolean(const std::string& key, bool def) const {
-    if (!has(key)) return def;
-    const json& v = j_.at(key);
-    if (!v.is_boolean()) throw InputError(at(key), "expected true or false, got " + got(v));
-    return v.get<bool>();
-  }
-
-  std::string string(const std::string& key, const std::string& def, bool required = false,
-                     const std::string& what = "") const {
-    if (!has(key)) {
-      if (required) missing(key, what);
-      return def;
-    }
-    const json& v = j_.at(key);
-    if (!v.is_string()) throw InputError(at(key), "expected a string, got " + got(v) + "; " + what);
-    return v.get<std::string>();
-  }
-
-  std::string choice(const std::string& key, const std::string& def, const std::vector<std::string>& allowed) const {
-    const std::string s = string(key, def, false, "one of the allowed words");
-    if (std::find(allowed.begin(), allowed.end(), s) == allowed.end()) {
-      std::string list;
-      for (const auto& a : allowed) list += (list.empty() ? "\"" : ", \"") + a + "\"";
-      throw InputError(at(key), "\"" + s + "\" is not allowed" + did_you_mean(s, allowed) + "; use one of " + list);
-    }
-    return s;
-  }
-
-  template <int N>
-  Eigen::Matrix<double, N, 1> vec(const std::string& key, const Eigen::Matrix<double, N, 1>& def,
-                                  const std::string& unit, const std::string& hint) const {
-    if (!has(key)) return def;
-    const json& v = j_.at(key);
-    if (!v.is_array() || v.size() != N)
-      throw InputError(at(key), "expected an array of " + std::to_string(N) + " numbers" +
-                                    (unit.empty() ? std::string() : " in " + unit) + ", got " + got(v) + "; " + hint);
-    Eigen::Matrix<double, N, 1> out;
-    for (int k = 0; k < N; ++k) {
-      const json& e = v[k];
-      if (!e.is_number() || !std::isfinite(e.get<double>()))
-        throw InputError(at(key) + "/" + std::to_string(k), "expected a finite number, got " + got(e) + "; " + hint);
-      out[k] = e.get<double>();
-    }
-    return out;
-  }
-
- private:
-  const json& j_;
-  std::string ptr_;
-};
 
 std::string lower_name_ok(const std::string& s) {
   // Names become file names and HDF5 group names: letters, digits, '_', '-', '.'.
@@ -212,7 +88,7 @@ std::string lower_name_ok(const std::string& s) {
   return "";
 }
 
-void read_name(const Obj& o, const std::string& key, std::string& out, bool required) {
+void read_name(const JsonObject& o, const std::string& key, std::string& out, bool required) {
   out = o.string(key, out, required, "a short identifier such as \"demo\"");
   if (out.empty()) throw InputError(o.at(key), "must not be empty; use letters, digits, '_', '-' or '.'");
   const std::string bad = lower_name_ok(out);
@@ -220,6 +96,372 @@ void read_name(const Obj& o, const std::string& key, std::string& out, bool requ
     throw InputError(o.at(key), "\"" + out + "\" contains '" + bad +
                                     "'; names become file and HDF5 group names: use only letters, digits, "
                                     "'_', '-' and '.'");
+}
+
+// ------------------------------------------------------------------ one function per section
+// Each reads its section of the scene into `s`, in the order of parse_scene; sections read
+// later may use earlier ones (defaults from material, water level, analysis).
+
+void read_top(const JsonObject& root, Scene& s) {
+  read_name(root, "name", s.name, true);
+  s.description = root.string("description", "", false, "free text");
+  s.output = root.string("output", s.name + ".h5", false, "the output HDF5 file, e.g. \"run.h5\"");
+  if (s.output.empty()) throw InputError("/output", "must not be empty; give a file name such as \"run.h5\"");
+}
+
+void read_time(const JsonObject& root, Scene& s) {
+  if (!root.has("time")) root.missing("time", "at least {\"duration\": <seconds>}");
+  const JsonObject o = section(root, "time");
+  auto& t = s.time;
+  t.duration = o.number("duration", 0, Range::positive(), "s", "give the simulated time in seconds, e.g. 10", true,
+                        "simulated time, s");
+  t.dt = o.number("dt", t.dt, Range::non_negative(), "s",
+                  "give the time step in seconds, or 0 for the paper's Eq. 2 (alpha D sqrt(rho/E))");
+  t.dt_alpha = o.number("dt_alpha", t.dt_alpha, {0.0, 1.0, true, false}, "",
+                        "alpha of Eq. 2; 0.1 is the paper's value and is stable");
+  t.output_interval = o.number("output_interval", t.output_interval, Range::positive(), "s",
+                               "time between series rows, e.g. 0.01");
+  t.snapshot_interval = o.number("snapshot_interval", t.snapshot_interval, Range::non_negative(), "s",
+                                 "time between particle snapshots, or 0 for none");
+  if (t.output_interval > t.duration)
+    s.warnings.push_back("/time/output_interval: " + json_fmt(t.output_interval) + " s is longer than the duration " +
+                         json_fmt(t.duration) + " s; the series will hold only the first row");
+}
+
+void read_material(const JsonObject& root, Scene& s) {
+  if (!root.has("material")) return;
+  const JsonObject o = section(root, "material");
+  auto& m = s.material;
+  m.density = o.number("density", m.density, Range::positive(), "kg/m^3", "sea ice is about 920");
+  m.youngs_modulus = o.number("youngs_modulus", m.youngs_modulus, Range::positive(), "Pa",
+                              "e.g. 1e9 (the paper) or a reduced 1e8 for fast demos");
+  m.poisson_ratio = o.number("poisson_ratio", m.poisson_ratio, {-1.0, 0.5, true, true}, "", "ice is about 0.3");
+  m.particle_diameter = o.number("particle_diameter", m.particle_diameter, Range::positive(), "m",
+                                 "the paper uses 0.5");
+  m.restitution = o.number("restitution", m.restitution, {0.0, 1.0, true, false}, "",
+                           "coefficient of restitution of contacts, e.g. 0.3");
+  m.friction = o.number("friction", m.friction, Range::non_negative(), "", "Coulomb coefficient, e.g. 0.3");
+  const std::string cm = o.choice("contact_model", "linear", {"linear", "hertz"});
+  m.contact_model = cm == "hertz" ? bonded::ContactModel::HertzMindlin : bonded::ContactModel::LinearSpringDashpot;
+  if (o.has("stiffness"))
+    m.stiffness = o.number("stiffness", 0.0, Range::positive(), "N/m", "omit it for the paper's Eq. 1, pi E D / 12");
+}
+
+void read_bonds(const JsonObject& root, Scene& s) {
+  if (!root.has("bonds")) return;
+  const JsonObject o = section(root, "bonds");
+  auto& b = s.bonds;
+  b.tensile_strength = o.number("tensile_strength", b.tensile_strength, Range::positive(), "Pa",
+                                "e.g. 0.6e6 (flexural strength of sea ice); use 1e30 for unbreakable bonds");
+  b.shear_strength = o.number("shear_strength", b.shear_strength, Range::positive(), "Pa",
+                              "e.g. 0.6e6; use 1e30 for unbreakable bonds");
+  b.damping_ratio = o.number("damping_ratio", b.damping_ratio, {0.0, 1.0, false, false}, "",
+                             "fraction of critical damping of each bond spring, e.g. 0.1");
+  b.radius_ratio = o.number("radius_ratio", b.radius_ratio, {0.0, 1.0, true, false}, "",
+                            "bond radius / particle radius, 1 for full-size bonds");
+  b.freeze_tensile_strength = o.number("freeze_tensile_strength", b.freeze_tensile_strength, Range::positive(), "Pa",
+                                       "freeze bonds are weak, e.g. 2e4");
+  b.freeze_shear_strength =
+      o.number("freeze_shear_strength", b.freeze_shear_strength, Range::positive(), "Pa", "e.g. 2e4");
+}
+
+void read_water(const JsonObject& root, Scene& s) {
+  if (!root.has("water")) return;
+  const JsonObject o = section(root, "water");
+  auto& w = s.water;
+  w.enabled = o.boolean("enabled", w.enabled);
+  w.level = o.number("level", w.level, Range::any(), "m", "z of the water surface");
+  w.density = o.number("density", w.density, Range::positive(), "kg/m^3", "sea water is about 1025");
+  w.linear_drag = o.number("linear_drag", w.linear_drag, Range::non_negative(), "N s/m",
+                           "linear drag per particle, damps heave; 0 for none");
+  w.drag_coefficient = o.number("drag_coefficient", w.drag_coefficient, Range::non_negative(), "",
+                                "quadratic drag coefficient C_d, e.g. 1; 0 for none");
+  w.current = o.vec<3>("current", w.current, "m/s", "water velocity [vx, vy, vz]");
+}
+
+void read_consolidated_layer(const JsonObject& ice_obj, IceDef& ice) {
+  const JsonObject c = section(ice_obj, "consolidated_layer");
+  auto& cl = ice.consolidated_layer;
+  ice.has_consolidated_layer = true;
+  cl.thickness = c.number("thickness", 0, Range::positive(), "m", "e.g. 0.9", true, "layer thickness, m");
+  cl.width = c.number("width", 0, Range::positive(), "m", "extent of the band along x, e.g. 20", true,
+                      "band width along x, m");
+  cl.center_x = c.number("center_x", ice.origin[0] + 0.5 * ice.length, Range::any(), "m",
+                         "x of the band's centre line");
+  if (cl.thickness <= ice.thickness)
+    throw InputError("/ice/consolidated_layer/thickness",
+                     "value " + json_fmt(cl.thickness) + " m must be greater than the level ice thickness " +
+                         json_fmt(ice.thickness) + " m; make it thicker or remove the consolidated_layer");
+}
+
+/// The sheet must hold at least one particle layer and one particle across, and not too many.
+void check_ice_size(Scene& s) {
+  const auto& ice = s.ice;
+  const double D = s.material.particle_diameter;
+  const double c = bonded::hcp_layer_spacing(D);
+  if (std::lround(ice.thickness / c) < 1)
+    throw InputError("/ice/thickness", "thickness " + json_fmt(ice.thickness) + " m gives no particle layer with D = " +
+                                           json_fmt(D) + " m (layer spacing " + json_fmt(c) + " m); use thickness >= " +
+                                           json_fmt(0.5 * c) + " m or a smaller /material/particle_diameter");
+  if (ice.length < D || ice.width < D)
+    throw InputError(ice.length < D ? "/ice/length" : "/ice/width",
+                     "the sheet must be at least one particle diameter (" + json_fmt(D) + " m) long and wide");
+  if (ice.thickness / D < 3.0 - 1e-9)
+    s.warnings.push_back("/ice/thickness: thickness / particle_diameter = " + json_fmt(ice.thickness / D) +
+                         " < 3: too few layers to resolve bending; consider a smaller particle_diameter");
+}
+
+/// Rough particle count guard: memory, not physics.
+void check_particle_count(const Scene& s) {
+  const auto& ice = s.ice;
+  const double D = s.material.particle_diameter;
+  const double c = bonded::hcp_layer_spacing(D);
+  const double per_layer = ice.length * ice.width / (D * D * std::sqrt(3.0) / 2.0);
+  const double layers =
+      std::round(std::max(ice.thickness, ice.has_consolidated_layer ? ice.consolidated_layer.thickness : 0.0) / c);
+  if (per_layer * layers > 2e8)
+    throw InputError("/ice", "about " + json_fmt(per_layer * layers) +
+                                 " particles would be needed (limit 2e8, ~1 kB each); reduce the sheet size or "
+                                 "increase /material/particle_diameter");
+}
+
+void read_ice(const JsonObject& root, Scene& s) {
+  if (!root.has("ice"))
+    throw InputError("/ice", "missing required section \"ice\": the scene has no particles; add e.g. "
+                             "\"ice\": {\"thickness\": 0.6, \"length\": 20, \"width\": 10}");
+  const JsonObject o = section(root, "ice");
+  auto& ice = s.ice;
+  s.has_ice = true;
+  ice.type = o.choice("type", "level_ice", {"level_ice"});
+  ice.thickness = o.number("thickness", 0, Range::positive(), "m", "e.g. 0.6", true, "ice thickness, m");
+  ice.length =
+      o.number("length", 0, Range::positive(), "m", "extent along x, e.g. 20", true, "sheet length along x, m");
+  ice.width = o.number("width", 0, Range::positive(), "m", "extent along y, e.g. 10", true, "sheet width along y, m");
+  const Eigen::Vector2d org = o.vec<2>("origin", Eigen::Vector2d(0, 0), "m", "[x, y] of the -x,-y corner");
+  ice.origin = {org.x(), org.y()};
+  check_ice_size(s);
+  if (o.has("consolidated_layer")) read_consolidated_layer(o, ice);
+  check_particle_count(s);
+}
+
+WallDef read_wall(const JsonObject& o, std::size_t k, const std::vector<WallDef>& earlier) {
+  WallDef w;
+  w.name = "wall" + std::to_string(k);
+  read_name(o, "name", w.name, false);
+  for (const auto& prev : earlier)
+    if (prev.name == w.name)
+      throw InputError(o.at("name"), "wall name \"" + w.name + "\" is used twice; names must be unique "
+                                                               "(they name the force series)");
+  if (!o.has("point")) o.missing("point", "a point on the plane [x, y, z], m");
+  if (!o.has("normal")) o.missing("normal", "the plane's normal [nx, ny, nz], pointing towards the ice");
+  w.point = o.vec<3>("point", w.point, "m", "a point on the plane [x, y, z]");
+  w.normal = o.vec<3>("normal", w.normal, "", "normal pointing towards the ice, e.g. [1, 0, 0]");
+  const double nn = w.normal.norm();
+  if (!(nn > 1e-12))
+    throw InputError(o.at("normal"), "the normal " + json_show(o.raw("normal")) +
+                                         " has zero length; give a direction pointing towards the ice");
+  w.normal /= nn;
+  w.velocity = o.vec<3>("velocity", w.velocity, "m/s", "constant wall velocity [vx, vy, vz]");
+  w.friction = o.number("friction", w.friction, Range::non_negative(), "", "ice-wall Coulomb coefficient");
+  return w;
+}
+
+void read_walls(const JsonObject& root, Scene& s) {
+  if (!root.has("walls")) return;
+  const json& wj = root.array("walls", "wall objects [{...}, ...]");
+  for (std::size_t k = 0; k < wj.size(); ++k)
+    s.walls.push_back(read_wall(section(wj[k], "/walls/" + std::to_string(k)), k, s.walls));
+}
+
+void read_pier(const JsonObject& o, mesh::PierParams& pp) {
+  const JsonObject p = section(o, "pier");
+  const std::string hint = "see docs/scene.md, structure.pier";
+  pp.waterline_diameter = p.number("waterline_diameter", pp.waterline_diameter, Range::any(), "m", hint);
+  pp.cone_angle_deg = p.number("cone_angle_deg", pp.cone_angle_deg, Range::any(), "deg", hint);
+  pp.cone_top_z = p.number("cone_top_z", pp.cone_top_z, Range::any(), "m", hint);
+  pp.cone_bottom_z = p.number("cone_bottom_z", pp.cone_bottom_z, Range::any(), "m", hint);
+  pp.neck_height = p.number("neck_height", pp.neck_height, Range::any(), "m", hint);
+  pp.shaft_diameter = p.number("shaft_diameter", pp.shaft_diameter, Range::any(), "m", hint);
+  pp.shaft_bottom_z = p.number("shaft_bottom_z", pp.shaft_bottom_z, Range::any(), "m", hint);
+  pp.segments = p.integer<int>("segments", pp.segments, {3.0, 100000.0, false, false}, "",
+                               "polygon corners per circle, an integer, e.g. 64");
+}
+
+void read_structure_mesh(const JsonObject& o, StructureDef& st, const std::string& base_dir) {
+  if (o.has("pier"))
+    throw InputError("/structure/pier", "pier parameters are only used with \"type\": \"pier\"; remove "
+                                        "\"pier\" or set \"type\": \"pier\"");
+  st.mesh = o.string("mesh", "", true, "an STL or OBJ file, relative to the scene file's directory");
+  if (st.mesh.empty()) throw InputError("/structure/mesh", "must not be empty; give an .stl or .obj file");
+  namespace fs = std::filesystem;
+  fs::path mp(st.mesh);
+  if (mp.is_relative() && !base_dir.empty()) mp = fs::path(base_dir) / mp;
+  st.mesh_path = mp.lexically_normal().string();
+  std::error_code ec;
+  if (!fs::is_regular_file(mp, ec))
+    throw InputError("/structure/mesh", "mesh file \"" + st.mesh_path + "\" not found (relative paths start "
+                                        "from the scene file's directory); check the name");
+}
+
+void read_structure(const JsonObject& root, Scene& s, const std::string& base_dir) {
+  if (!root.has("structure")) return;
+  const JsonObject o = section(root, "structure");
+  auto& st = s.structure;
+  s.has_structure = true;
+  read_name(o, "name", st.name, false);
+  st.type = o.choice("type", o.has("mesh") && !o.has("pier") ? "mesh" : "pier", {"pier", "mesh"});
+  if (st.type == "pier") {
+    if (o.has("mesh"))
+      throw InputError("/structure/mesh", "a mesh file is only read with \"type\": \"mesh\"; remove \"mesh\" "
+                                          "or set \"type\": \"mesh\"");
+    if (o.has("pier")) read_pier(o, st.pier);
+    mesh::validate_pier_params(st.pier, "/structure/pier");
+  } else {
+    read_structure_mesh(o, st, base_dir);
+  }
+  st.position = o.vec<3>("position", Vec3(0.0, 0.0, s.water.enabled ? s.water.level : 0.0), "m",
+                         "[x, y, z] of the mesh origin (pier: its axis at the waterline)");
+  st.velocity = o.vec<3>("velocity", st.velocity, "m/s", "constant velocity into the ice, e.g. [0.4, 0, 0]");
+  st.friction = o.number("friction", st.friction, Range::non_negative(), "", "ice-structure Coulomb coefficient");
+}
+
+/// ISO 19906 inputs the ice and structure do not give.
+void read_analysis(const JsonObject& root, Scene& s) {
+  if (root.has("analysis")) {
+    const JsonObject o = section(root, "analysis");
+    auto& a = s.analysis;
+    a.flexural_strength = o.number("flexural_strength", a.flexural_strength, Range::positive(), "Pa",
+                                   "flexural strength of the ice, e.g. 0.5e6");
+    a.rubble_porosity = o.number("rubble_porosity", a.rubble_porosity, {0.0, 1.0, false, true}, "", "e.g. 0.3");
+    a.rubble_slope_deg = o.number("rubble_slope_deg", a.rubble_slope_deg, {0.0, 90.0, false, true}, "deg",
+                                  "rubble pile slope, below the cone angle; 0 = 0.8 x the cone angle");
+    a.rubble_friction_angle_deg = o.number("rubble_friction_angle_deg", a.rubble_friction_angle_deg,
+                                           {0.0, 90.0, false, true}, "deg", "e.g. 30");
+    a.rubble_cohesion = o.number("rubble_cohesion", a.rubble_cohesion, Range::non_negative(), "Pa", "e.g. 3e3");
+    a.friction_ice_ice = o.number("friction_ice_ice", s.material.friction, Range::non_negative(), "",
+                                  "ice-ice friction of the rubble; default material.friction");
+    a.keel_depth = o.number("keel_depth", a.keel_depth, Range::non_negative(), "m", "0 for level ice");
+    a.rubble_height = o.number("rubble_height", a.rubble_height, Range::non_negative(), "m",
+                               "pile height for `hybridsim iso` on this scene; a run uses its own");
+  }
+  if (s.analysis.friction_ice_ice < 0) s.analysis.friction_ice_ice = s.material.friction;
+}
+
+void read_stability(const JsonObject& root, Scene& s) {
+  if (!root.has("stability")) return;
+  const JsonObject o = section(root, "stability");
+  s.stability.max_speed = o.number("max_speed", s.stability.max_speed, Range::positive(), "m/s",
+                                   "speed above which the run stops as unstable, e.g. 100");
+  s.stability.max_overlap_ratio = o.number("max_overlap_ratio", s.stability.max_overlap_ratio,
+                                           {0.0, 2.0, true, false}, "",
+                                           "overlap / radius above which the run stops, e.g. 0.5");
+}
+
+void read_parallel(const JsonObject& root, Scene& s) {
+  if (!root.has("parallel")) return;
+  const JsonObject o = section(root, "parallel");
+  auto& p = s.parallel;
+  if (o.has("grid")) {
+    const Eigen::Vector3d g = o.vec<3>("grid", Eigen::Vector3d::Zero(), "",
+                                       "boxes along x, y and z whose product is the MPI rank count, e.g. [4, 1, 1]");
+    const bool auto_grid = g == Eigen::Vector3d::Zero();
+    for (int a = 0; a < 3; ++a) {
+      if (g[a] != std::floor(g[a]) || (!auto_grid && g[a] < 1) || g[a] > 65536)
+        throw InputError("/parallel/grid/" + std::to_string(a),
+                         "expected a whole number >= 1, got " + json_fmt(g[a]) +
+                             "; give boxes per axis whose product is the rank count, or [0, 0, 0] to choose");
+      p.grid[a] = static_cast<int>(g[a]);
+    }
+  }
+  p.balance_interval = o.integer<std::uint64_t>("balance_interval", p.balance_interval, Range::non_negative(),
+                                                "steps", "steps between load-balance checks, e.g. 500, or 0 to keep "
+                                                         "the first cuts");
+  p.cost = o.choice("cost", p.cost, {"work", "time"});
+}
+
+BlockItemDef read_block_item(const JsonObject& bo) {
+  BlockItemDef it;
+  it.half_extents = bo.vec<3>("half_extents", it.half_extents, "m", "half sizes along the block's axes");
+  for (int a = 0; a < 3; ++a)
+    if (!(it.half_extents[a] > 0.0))
+      throw InputError(bo.at("half_extents") + "/" + std::to_string(a), "must be > 0 (m)");
+  it.position = bo.vec<3>("position", it.position, "m", "centre of the block");
+  const Eigen::Vector4d q =
+      bo.vec<4>("orientation", Eigen::Vector4d(1, 0, 0, 0), "", "unit quaternion [w, x, y, z], body to world");
+  if (!(q.norm() > 1e-12)) throw InputError(bo.at("orientation"), "must be a non-zero quaternion [w, x, y, z]");
+  it.orientation = Quat(q[0], q[1], q[2], q[3]).normalized();
+  it.velocity = bo.vec<3>("velocity", it.velocity, "m/s", "initial velocity");
+  it.angular_velocity = bo.vec<3>("angular_velocity", it.angular_velocity, "rad/s", "initial angular velocity");
+  return it;
+}
+
+/// Where the blocks come from: a ridge file (cropped, shifted) and/or a list.
+void read_block_sources(const JsonObject& o, BlocksDef& b, const std::string& base_dir) {
+  b.ridge_file = o.string("ridge_file", "", false, "an HDF5 ridge file written by `hybridsim ridge`");
+  if (!b.ridge_file.empty()) {
+    const std::filesystem::path fp(b.ridge_file);
+    b.ridge_file_path =
+        fp.is_absolute() || base_dir.empty() ? fp.string() : (std::filesystem::path(base_dir) / fp).string();
+    if (!std::filesystem::exists(b.ridge_file_path))
+      throw InputError("/blocks/ridge_file", "cannot find " + b.ridge_file_path +
+                                                 " (relative to the scene file); make it with `hybridsim ridge "
+                                                 "<ridge scene>.json -o <file>` or fix the path");
+  }
+  b.offset = o.vec<3>("offset", b.offset, "m", "shift of the ridge file's blocks, e.g. [30, 0, 0]");
+  for (const char* key : {"keep_x", "keep_y"}) {
+    const Eigen::Vector2d r = o.vec<2>(key, Eigen::Vector2d(-1e30, 1e30), "m",
+                                       "[min, max] of the block centres kept from the ridge file (after offset)");
+    if (!(r[0] < r[1])) throw InputError(o.at(key), "min must be < max; e.g. [-10, 10]");
+    (std::string(key) == "keep_x" ? b.keep_x : b.keep_y) = {r[0], r[1]};
+  }
+  b.keep_sail = o.boolean("keep_sail", b.keep_sail);
+  if (o.has("list")) {
+    const json& arr = o.array("list", "blocks [{\"half_extents\": [..], \"position\": [..]}, ...]");
+    for (std::size_t k = 0; k < arr.size(); ++k)
+      b.list.push_back(read_block_item(section(arr[k], "/blocks/list/" + std::to_string(k))));
+  }
+  if (b.ridge_file.empty() && b.list.empty())
+    throw InputError("/blocks", "no blocks: give \"ridge_file\" (from `hybridsim ridge`) or a \"list\", or remove "
+                                "the \"blocks\" section");
+}
+
+void read_conversion_region(const JsonObject& o, ConversionRegionDef& g) {
+  const JsonObject r = section(o, "region");
+  g.shape = r.choice("shape", g.shape, {"cylinder", "box"});
+  g.offset = r.vec<3>("offset", g.offset, "m", "centre relative to the structure's mesh origin");
+  g.radius = r.number("radius", g.radius, Range::non_negative(), "m", "0 = structure radius + 5 m");
+  g.z_min = r.number("z_min", g.z_min, Range::any(), "m", "bottom of the cylinder, relative to the offset");
+  g.z_max = r.number("z_max", g.z_max, Range::any(), "m", "top of the cylinder, relative to the offset");
+  if (!(g.z_min < g.z_max)) throw InputError("/blocks/region/z_max", "must be > z_min");
+  g.half_extents = r.vec<3>("half_extents", g.half_extents, "m", "half sizes of the box region");
+  if (g.shape == "box" && !(g.half_extents.minCoeff() > 0.0))
+    throw InputError("/blocks/region/half_extents", "a box region needs three half extents > 0, e.g. [15, 15, 10]");
+}
+
+/// Rigid ice blocks and their conversion.
+void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) {
+  if (!root.has("blocks")) return;
+  const JsonObject o = section(root, "blocks");
+  auto& b = s.blocks;
+  s.has_blocks = true;
+  read_block_sources(o, b, base_dir);
+  b.density = o.number("density", s.material.density, Range::positive(), "kg/m^3", "ice density, e.g. 920");
+  b.friction = o.number("friction", s.material.friction, Range::non_negative(), "", "ice-ice Coulomb coefficient");
+  b.linear_drag = o.number("linear_drag", b.linear_drag, Range::non_negative(), "Pa s/m",
+                           "linear drag per wetted face area (heave damper), e.g. 1000");
+  b.drag_coefficient = o.number("drag_coefficient", b.drag_coefficient, Range::non_negative(), "", "e.g. 1.0");
+  b.solver_iterations = o.integer<int>("solver_iterations", b.solver_iterations, {1.0, 1000.0}, "",
+                                       "Bullet sequential-impulse iterations, e.g. 20");
+  b.rigid_dt = o.number("rigid_dt", b.rigid_dt, Range::non_negative(), "s",
+                        "rigid step; 0 = the largest the stability rule allows (docs/bridge.md)");
+  b.conversion = o.choice("conversion", b.conversion, {"hybrid", "all_at_start", "never"});
+  b.safety_factor = o.number("safety_factor", b.safety_factor, Range::positive(), "",
+                             "a block converts when its stress utilisation x safety_factor >= 1; > 1 converts earlier");
+  b.flexural_strength = o.number("flexural_strength", s.analysis.flexural_strength, Range::positive(), "Pa",
+                                 "flexural strength of a block, e.g. 0.5e6");
+  b.stress_time_constant = o.number("stress_time_constant", b.stress_time_constant, Range::non_negative(), "s",
+                                    "time constant of the filter on each block's stress utilisation, e.g. 0.05");
+  if (o.has("region")) read_conversion_region(o, b.region);
 }
 
 }  // namespace
@@ -237,39 +479,70 @@ double MaterialDef::effective_stiffness() const {
   return stiffness > 0.0 ? stiffness : kPi * youngs_modulus * particle_diameter / 12.0;
 }
 
-json parse_json_text(const std::string& text, const std::string& source) {
-  try {
-    return json::parse(text);
-  } catch (const json::parse_error& e) {
-    // Byte offset -> line and column (1-based).
-    std::size_t line = 1, col = 1;
-    const std::size_t end = std::min<std::size_t>(e.byte == 0 ? 0 : e.byte - 1, text.size());
-    for (std::size_t i = 0; i < end; ++i) {
-      if (text[i] == '\n') {
-        ++line;
-        col = 1;
-      } else {
-        ++col;
-      }
-    }
-    std::string what = e.what();
-    // nlohmann: "[json.exception.parse_error.101] parse error at line 3, column 5: syntax error ..."
-    const std::size_t colon = what.find(": ", what.find("parse error"));
-    if (colon != std::string::npos) what = what.substr(colon + 2);
-    throw InputError(source, "invalid JSON at line " + std::to_string(line) + ", column " + std::to_string(col) +
-                                 ": " + what + "; fix the syntax there (a missing comma or quote, or a trailing "
-                                               "comma, is the usual cause)");
+namespace {
+
+/// "ice.consolidated_layer.thickness" -> {"ice", "consolidated_layer", "thickness"}.
+std::vector<std::string> split_dotted(const std::string& dotted) {
+  std::vector<std::string> parts;
+  std::size_t pos = 0;
+  while (true) {
+    const std::size_t dot = dotted.find('.', pos);
+    parts.push_back(dotted.substr(pos, dot == std::string::npos ? std::string::npos : dot - pos));
+    if (dot == std::string::npos) break;
+    pos = dot + 1;
   }
+  return parts;
 }
 
-json read_json_file(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw InputError(path, std::string("cannot open the scene file: ") + std::strerror(errno) +
-                                      "; check the path (relative paths start from the current directory)");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_json_text(ss.str(), path);
+/// One --set step into an array: the element `part` of `node` (at `ptr`); nullptr when `last`
+/// (then the element is set to `value`).
+json* override_array_step(json* node, const std::string& ptr, const std::string& part, bool last, const json& value) {
+  const std::string child = ptr + "/" + part;
+  if (!is_index(part))
+    throw InputError(child, "\"" + part + "\" is not an index into the array at " + json_pointer_display(ptr) +
+                                "; use a number, e.g. walls.0.velocity");
+  const std::size_t idx = std::stoul(part);
+  if (idx >= node->size())
+    throw InputError(child, "index " + part + " is out of range: the array at " + ptr + " has " +
+                                std::to_string(node->size()) + " elements (--set cannot add elements)");
+  if (last) {
+    (*node)[idx] = value;
+    return nullptr;
+  }
+  return &(*node)[idx];
 }
+
+/// One --set step into an object: checks `part` against the schema at `ptr`.
+json* override_object_step(json* node, const std::string& ptr, const std::string& part, bool last, const json& value,
+                           const std::string& dotted) {
+  const std::string child = ptr + "/" + part;
+  const auto& allowed = allowed_keys(ptr);
+  if (allowed.empty())
+    throw InputError(child, "--set path \"" + dotted + "\" does not exist in the scene schema: " +
+                                json_pointer_display(ptr) + " is not an object");
+  if (std::find(allowed.begin(), allowed.end(), part) == allowed.end())
+    throw InputError(child, "--set path \"" + dotted + "\" does not exist in the scene schema: " +
+                                unknown_key_text(part, allowed));
+  if (!node->is_object()) throw InputError(json_pointer_display(ptr), "expected an object, got " + json_got(*node));
+  if (last) {
+    (*node)[part] = value;
+    return nullptr;
+  }
+  if (!node->contains(part)) {
+    if (allowed_keys(child).empty())
+      throw InputError(child, "--set path \"" + dotted + "\" goes below \"" + part +
+                                  "\", which is absent from the scene; --set cannot create array elements, "
+                                  "add them to the scene file");
+    (*node)[part] = json::object();
+  }
+  node = &(*node)[part];
+  if (!node->is_object() && !node->is_array())
+    throw InputError(child, "--set path \"" + dotted + "\" goes below " + child + ", which is a " +
+                                node->type_name() + ", not an object");
+  return node;
+}
+
+}  // namespace
 
 void apply_override(json& scene, const std::string& assignment) {
   const std::size_t eq = assignment.find('=');
@@ -283,16 +556,7 @@ void apply_override(json& scene, const std::string& assignment) {
   } catch (const json::parse_error&) {
     value = text;  // plain words are strings: --set name=run2
   }
-  std::vector<std::string> parts;
-  {
-    std::size_t pos = 0;
-    while (true) {
-      const std::size_t dot = dotted.find('.', pos);
-      parts.push_back(dotted.substr(pos, dot == std::string::npos ? std::string::npos : dot - pos));
-      if (dot == std::string::npos) break;
-      pos = dot + 1;
-    }
-  }
+  const std::vector<std::string> parts = split_dotted(dotted);
   if (!scene.is_object()) throw InputError("/", "the scene must be a JSON object {...}");
   json* node = &scene;
   std::string ptr;
@@ -300,50 +564,10 @@ void apply_override(json& scene, const std::string& assignment) {
     const std::string& part = parts[k];
     const bool last = k + 1 == parts.size();
     if (part.empty()) throw InputError("--set " + dotted, "empty path component; write e.g. ice.thickness=0.9");
-    const std::string child = ptr + "/" + part;
-    if (node->is_array()) {
-      if (!is_index(part))
-        throw InputError(child, "\"" + part + "\" is not an index into the array at " + (ptr.empty() ? "/" : ptr) +
-                                    "; use a number, e.g. walls.0.velocity");
-      const std::size_t idx = std::stoul(part);
-      if (idx >= node->size())
-        throw InputError(child, "index " + part + " is out of range: the array at " + ptr + " has " +
-                                    std::to_string(node->size()) + " elements (--set cannot add elements)");
-      if (last) {
-        (*node)[idx] = value;
-        return;
-      }
-      node = &(*node)[idx];
-    } else {
-      const auto& allowed = allowed_keys(ptr);
-      if (allowed.empty())
-        throw InputError(child, "--set path \"" + dotted + "\" does not exist in the scene schema: " +
-                                    (ptr.empty() ? std::string("/") : ptr) + " is not an object");
-      if (std::find(allowed.begin(), allowed.end(), part) == allowed.end()) {
-        std::string list;
-        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-        throw InputError(child, "--set path \"" + dotted + "\" does not exist in the scene schema: unknown key \"" +
-                                    part + "\"" + did_you_mean(part, allowed) + "; allowed here: " + list);
-      }
-      if (!node->is_object())
-        throw InputError(ptr.empty() ? "/" : ptr, "expected an object, got " + got(*node));
-      if (last) {
-        (*node)[part] = value;
-        return;
-      }
-      if (!node->contains(part)) {
-        if (allowed_keys(child).empty())
-          throw InputError(child, "--set path \"" + dotted + "\" goes below \"" + part +
-                                      "\", which is absent from the scene; --set cannot create array elements, "
-                                      "add them to the scene file");
-        (*node)[part] = json::object();
-      }
-      node = &(*node)[part];
-      if (!node->is_object() && !node->is_array())
-        throw InputError(child, "--set path \"" + dotted + "\" goes below " + child + ", which is a " +
-                                    node->type_name() + ", not an object");
-    }
-    ptr = child;
+    node = node->is_array() ? override_array_step(node, ptr, part, last, value)
+                            : override_object_step(node, ptr, part, last, value, dotted);
+    if (node == nullptr) return;
+    ptr += "/" + part;
   }
 }
 
@@ -352,352 +576,26 @@ void apply_override(json& scene, const std::string& assignment) {
 Scene parse_scene(const json& j, const std::string& base_dir) {
   Scene s;
   s.json = j;
-  const Obj root(j, "");
-  read_name(root, "name", s.name, true);
-  s.description = root.string("description", "", false, "free text");
-  s.output = root.string("output", s.name + ".h5", false, "the output HDF5 file, e.g. \"run.h5\"");
-  if (s.output.empty()) throw InputError("/output", "must not be empty; give a file name such as \"run.h5\"");
-
-  // time
-  if (!root.has("time")) root.missing("time", "at least {\"duration\": <seconds>}");
-  {
-    const Obj o(root.raw("time"), "/time");
-    auto& t = s.time;
-    t.duration = o.number("duration", 0, Range::positive(), "s", "give the simulated time in seconds, e.g. 10",
-                          true, "simulated time, s");
-    t.dt = o.number("dt", t.dt, Range::non_negative(), "s",
-                    "give the time step in seconds, or 0 for the paper's Eq. 2 (alpha D sqrt(rho/E))");
-    t.dt_alpha = o.number("dt_alpha", t.dt_alpha, {0.0, 1.0, true, false}, "",
-                          "alpha of Eq. 2; 0.1 is the paper's value and is stable");
-    t.output_interval = o.number("output_interval", t.output_interval, Range::positive(), "s",
-                                 "time between series rows, e.g. 0.01");
-    t.snapshot_interval = o.number("snapshot_interval", t.snapshot_interval, Range::non_negative(), "s",
-                                   "time between particle snapshots, or 0 for none");
-    if (t.output_interval > t.duration)
-      s.warnings.push_back("/time/output_interval: " + fmt(t.output_interval) + " s is longer than the duration " +
-                           fmt(t.duration) + " s; the series will hold only the first row");
-  }
-
-  // material
-  if (root.has("material")) {
-    const Obj o(root.raw("material"), "/material");
-    auto& m = s.material;
-    m.density = o.number("density", m.density, Range::positive(), "kg/m^3", "sea ice is about 920");
-    m.youngs_modulus = o.number("youngs_modulus", m.youngs_modulus, Range::positive(), "Pa",
-                                "e.g. 1e9 (the paper) or a reduced 1e8 for fast demos");
-    m.poisson_ratio = o.number("poisson_ratio", m.poisson_ratio, {-1.0, 0.5, true, true}, "", "ice is about 0.3");
-    m.particle_diameter = o.number("particle_diameter", m.particle_diameter, Range::positive(), "m",
-                                   "the paper uses 0.5");
-    m.restitution = o.number("restitution", m.restitution, {0.0, 1.0, true, false}, "",
-                             "coefficient of restitution of contacts, e.g. 0.3");
-    m.friction = o.number("friction", m.friction, Range::non_negative(), "", "Coulomb coefficient, e.g. 0.3");
-    const std::string cm = o.choice("contact_model", "linear", {"linear", "hertz"});
-    m.contact_model = cm == "hertz" ? bonded::ContactModel::HertzMindlin : bonded::ContactModel::LinearSpringDashpot;
-    if (o.has("stiffness"))
-      m.stiffness = o.number("stiffness", 0.0, Range::positive(), "N/m",
-                             "omit it for the paper's Eq. 1, pi E D / 12");
-  }
-
-  // bonds
-  if (root.has("bonds")) {
-    const Obj o(root.raw("bonds"), "/bonds");
-    auto& b = s.bonds;
-    b.tensile_strength = o.number("tensile_strength", b.tensile_strength, Range::positive(), "Pa",
-                                  "e.g. 0.6e6 (flexural strength of sea ice); use 1e30 for unbreakable bonds");
-    b.shear_strength = o.number("shear_strength", b.shear_strength, Range::positive(), "Pa",
-                                "e.g. 0.6e6; use 1e30 for unbreakable bonds");
-    b.damping_ratio = o.number("damping_ratio", b.damping_ratio, {0.0, 1.0, false, false}, "",
-                               "fraction of critical damping of each bond spring, e.g. 0.1");
-    b.radius_ratio = o.number("radius_ratio", b.radius_ratio, {0.0, 1.0, true, false}, "",
-                              "bond radius / particle radius, 1 for full-size bonds");
-    b.freeze_tensile_strength = o.number("freeze_tensile_strength", b.freeze_tensile_strength, Range::positive(),
-                                         "Pa", "freeze bonds are weak, e.g. 2e4");
-    b.freeze_shear_strength =
-        o.number("freeze_shear_strength", b.freeze_shear_strength, Range::positive(), "Pa", "e.g. 2e4");
-  }
-
-  // water
-  if (root.has("water")) {
-    const Obj o(root.raw("water"), "/water");
-    auto& w = s.water;
-    w.enabled = o.boolean("enabled", w.enabled);
-    w.level = o.number("level", w.level, Range::any(), "m", "z of the water surface");
-    w.density = o.number("density", w.density, Range::positive(), "kg/m^3", "sea water is about 1025");
-    w.linear_drag = o.number("linear_drag", w.linear_drag, Range::non_negative(), "N s/m",
-                             "linear drag per particle, damps heave; 0 for none");
-    w.drag_coefficient = o.number("drag_coefficient", w.drag_coefficient, Range::non_negative(), "",
-                                  "quadratic drag coefficient C_d, e.g. 1; 0 for none");
-    w.current = o.vec<3>("current", w.current, "m/s", "water velocity [vx, vy, vz]");
-  }
+  const JsonObject root = section(j, "");
+  read_top(root, s);
+  read_time(root, s);
+  read_material(root, s);
+  read_bonds(root, s);
+  read_water(root, s);
   s.gravity = root.vec<3>("gravity", s.gravity, "m/s^2", "e.g. [0, 0, -9.81]");
-
-  // ice
-  if (!root.has("ice"))
-    throw InputError("/ice", "missing required section \"ice\": the scene has no particles; add e.g. "
-                             "\"ice\": {\"thickness\": 0.6, \"length\": 20, \"width\": 10}");
-  {
-    const Obj o(root.raw("ice"), "/ice");
-    auto& ice = s.ice;
-    s.has_ice = true;
-    ice.type = o.choice("type", "level_ice", {"level_ice"});
-    ice.thickness = o.number("thickness", 0, Range::positive(), "m", "e.g. 0.6", true, "ice thickness, m");
-    ice.length = o.number("length", 0, Range::positive(), "m", "extent along x, e.g. 20", true,
-                          "sheet length along x, m");
-    ice.width = o.number("width", 0, Range::positive(), "m", "extent along y, e.g. 10", true,
-                         "sheet width along y, m");
-    const Eigen::Vector2d org = o.vec<2>("origin", Eigen::Vector2d(0, 0), "m", "[x, y] of the -x,-y corner");
-    ice.origin = {org.x(), org.y()};
-    const double D = s.material.particle_diameter;
-    const double c = bonded::hcp_layer_spacing(D);
-    if (std::lround(ice.thickness / c) < 1)
-      throw InputError("/ice/thickness", "thickness " + fmt(ice.thickness) + " m gives no particle layer with D = " +
-                                             fmt(D) + " m (layer spacing " + fmt(c) + " m); use thickness >= " +
-                                             fmt(0.5 * c) + " m or a smaller /material/particle_diameter");
-    if (ice.length < D || ice.width < D)
-      throw InputError(ice.length < D ? "/ice/length" : "/ice/width",
-                       "the sheet must be at least one particle diameter (" + fmt(D) + " m) long and wide");
-    if (ice.thickness / D < 3.0 - 1e-9)
-      s.warnings.push_back("/ice/thickness: thickness / particle_diameter = " + fmt(ice.thickness / D) +
-                           " < 3: too few layers to resolve bending; consider a smaller particle_diameter");
-    if (o.has("consolidated_layer")) {
-      const Obj c(o.raw("consolidated_layer"), "/ice/consolidated_layer");
-      auto& cl = ice.consolidated_layer;
-      ice.has_consolidated_layer = true;
-      cl.thickness = c.number("thickness", 0, Range::positive(), "m", "e.g. 0.9", true, "layer thickness, m");
-      cl.width = c.number("width", 0, Range::positive(), "m", "extent of the band along x, e.g. 20", true,
-                          "band width along x, m");
-      cl.center_x = c.number("center_x", ice.origin[0] + 0.5 * ice.length, Range::any(), "m",
-                             "x of the band's centre line");
-      if (cl.thickness <= ice.thickness)
-        throw InputError("/ice/consolidated_layer/thickness",
-                         "value " + fmt(cl.thickness) + " m must be greater than the level ice thickness " +
-                             fmt(ice.thickness) + " m; make it thicker or remove the consolidated_layer");
-    }
-    // Rough particle count guard: memory, not physics.
-    const double per_layer = ice.length * ice.width / (D * D * std::sqrt(3.0) / 2.0);
-    const double layers = std::round(std::max(ice.thickness, ice.has_consolidated_layer
-                                                                  ? ice.consolidated_layer.thickness
-                                                                  : 0.0) / c);
-    if (per_layer * layers > 2e8)
-      throw InputError("/ice", "about " + fmt(per_layer * layers) +
-                                   " particles would be needed (limit 2e8, ~1 kB each); reduce the sheet size or "
-                                   "increase /material/particle_diameter");
-  }
-
-  // walls
-  if (root.has("walls")) {
-    const json& wj = root.raw("walls");
-    if (!wj.is_array())
-      throw InputError("/walls", "expected an array of wall objects [{...}, ...], got " + got(wj));
-    for (std::size_t k = 0; k < wj.size(); ++k) {
-      const std::string p = "/walls/" + std::to_string(k);
-      const Obj o(wj[k], p);
-      WallDef w;
-      w.name = "wall" + std::to_string(k);
-      read_name(o, "name", w.name, false);
-      for (const auto& prev : s.walls)
-        if (prev.name == w.name)
-          throw InputError(p + "/name", "wall name \"" + w.name + "\" is used twice; names must be unique "
-                                                                  "(they name the force series)");
-      if (!o.has("point")) o.missing("point", "a point on the plane [x, y, z], m");
-      if (!o.has("normal")) o.missing("normal", "the plane's normal [nx, ny, nz], pointing towards the ice");
-      w.point = o.vec<3>("point", w.point, "m", "a point on the plane [x, y, z]");
-      w.normal = o.vec<3>("normal", w.normal, "", "normal pointing towards the ice, e.g. [1, 0, 0]");
-      const double nn = w.normal.norm();
-      if (!(nn > 1e-12))
-        throw InputError(p + "/normal", "the normal " + show(o.raw("normal")) +
-                                            " has zero length; give a direction pointing towards the ice");
-      w.normal /= nn;
-      w.velocity = o.vec<3>("velocity", w.velocity, "m/s", "constant wall velocity [vx, vy, vz]");
-      w.friction = o.number("friction", w.friction, Range::non_negative(), "", "ice-wall Coulomb coefficient");
-      s.walls.push_back(w);
-    }
-  }
-
-  // structure
-  if (root.has("structure")) {
-    const Obj o(root.raw("structure"), "/structure");
-    auto& st = s.structure;
-    s.has_structure = true;
-    read_name(o, "name", st.name, false);
-    st.type = o.choice("type", o.has("mesh") && !o.has("pier") ? "mesh" : "pier", {"pier", "mesh"});
-    if (st.type == "pier") {
-      if (o.has("mesh"))
-        throw InputError("/structure/mesh", "a mesh file is only read with \"type\": \"mesh\"; remove \"mesh\" "
-                                            "or set \"type\": \"mesh\"");
-      if (o.has("pier")) {
-        const Obj p(o.raw("pier"), "/structure/pier");
-        auto& pp = st.pier;
-        const std::string hint = "see docs/scene.md, structure.pier";
-        pp.waterline_diameter = p.number("waterline_diameter", pp.waterline_diameter, Range::any(), "m", hint);
-        pp.cone_angle_deg = p.number("cone_angle_deg", pp.cone_angle_deg, Range::any(), "deg", hint);
-        pp.cone_top_z = p.number("cone_top_z", pp.cone_top_z, Range::any(), "m", hint);
-        pp.cone_bottom_z = p.number("cone_bottom_z", pp.cone_bottom_z, Range::any(), "m", hint);
-        pp.neck_height = p.number("neck_height", pp.neck_height, Range::any(), "m", hint);
-        pp.shaft_diameter = p.number("shaft_diameter", pp.shaft_diameter, Range::any(), "m", hint);
-        pp.shaft_bottom_z = p.number("shaft_bottom_z", pp.shaft_bottom_z, Range::any(), "m", hint);
-        const double seg = p.number("segments", pp.segments, {3.0, 100000.0, false, false}, "",
-                                    "polygon corners per circle, an integer, e.g. 64");
-        if (seg != std::floor(seg))
-          throw InputError("/structure/pier/segments", "value " + fmt(seg) + " must be a whole number, e.g. 64");
-        pp.segments = static_cast<int>(seg);
-      }
-      mesh::validate_pier_params(st.pier, "/structure/pier");
-    } else {
-      if (o.has("pier"))
-        throw InputError("/structure/pier", "pier parameters are only used with \"type\": \"pier\"; remove "
-                                            "\"pier\" or set \"type\": \"pier\"");
-      st.mesh = o.string("mesh", "", true, "an STL or OBJ file, relative to the scene file's directory");
-      if (st.mesh.empty()) throw InputError("/structure/mesh", "must not be empty; give an .stl or .obj file");
-      namespace fs = std::filesystem;
-      fs::path mp(st.mesh);
-      if (mp.is_relative() && !base_dir.empty()) mp = fs::path(base_dir) / mp;
-      st.mesh_path = mp.lexically_normal().string();
-      std::error_code ec;
-      if (!fs::is_regular_file(mp, ec))
-        throw InputError("/structure/mesh", "mesh file \"" + st.mesh_path + "\" not found (relative paths start "
-                                            "from the scene file's directory); check the name");
-    }
-    st.position = o.vec<3>("position", Vec3(0.0, 0.0, s.water.enabled ? s.water.level : 0.0), "m",
-                           "[x, y, z] of the mesh origin (pier: its axis at the waterline)");
-    st.velocity = o.vec<3>("velocity", st.velocity, "m/s", "constant velocity into the ice, e.g. [0.4, 0, 0]");
-    st.friction = o.number("friction", st.friction, Range::non_negative(), "", "ice-structure Coulomb coefficient");
-  }
-
-  // analysis (ISO 19906 inputs the ice and structure do not give)
-  if (root.has("analysis")) {
-    const Obj o(root.raw("analysis"), "/analysis");
-    auto& a = s.analysis;
-    a.flexural_strength = o.number("flexural_strength", a.flexural_strength, Range::positive(), "Pa",
-                                   "flexural strength of the ice, e.g. 0.5e6");
-    a.rubble_porosity = o.number("rubble_porosity", a.rubble_porosity, {0.0, 1.0, false, true}, "", "e.g. 0.3");
-    a.rubble_slope_deg = o.number("rubble_slope_deg", a.rubble_slope_deg, {0.0, 90.0, false, true}, "deg",
-                                  "rubble pile slope, below the cone angle; 0 = 0.8 x the cone angle");
-    a.rubble_friction_angle_deg = o.number("rubble_friction_angle_deg", a.rubble_friction_angle_deg,
-                                           {0.0, 90.0, false, true}, "deg", "e.g. 30");
-    a.rubble_cohesion = o.number("rubble_cohesion", a.rubble_cohesion, Range::non_negative(), "Pa", "e.g. 3e3");
-    a.friction_ice_ice = o.number("friction_ice_ice", s.material.friction, Range::non_negative(), "",
-                                  "ice-ice friction of the rubble; default material.friction");
-    a.keel_depth = o.number("keel_depth", a.keel_depth, Range::non_negative(), "m", "0 for level ice");
-    a.rubble_height = o.number("rubble_height", a.rubble_height, Range::non_negative(), "m",
-                               "pile height for `hybridsim iso` on this scene; a run uses its own");
-  }
-  if (s.analysis.friction_ice_ice < 0) s.analysis.friction_ice_ice = s.material.friction;
-
-  // stability
-  if (root.has("stability")) {
-    const Obj o(root.raw("stability"), "/stability");
-    s.stability.max_speed = o.number("max_speed", s.stability.max_speed, Range::positive(), "m/s",
-                                     "speed above which the run stops as unstable, e.g. 100");
-    s.stability.max_overlap_ratio = o.number("max_overlap_ratio", s.stability.max_overlap_ratio,
-                                             {0.0, 2.0, true, false}, "",
-                                             "overlap / radius above which the run stops, e.g. 0.5");
-  }
-
-  // parallel
-  if (root.has("parallel")) {
-    const Obj o(root.raw("parallel"), "/parallel");
-    auto& p = s.parallel;
-    if (o.has("grid")) {
-      const Eigen::Vector3d g = o.vec<3>("grid", Eigen::Vector3d::Zero(), "",
-                                         "boxes along x, y and z whose product is the MPI rank count, e.g. [4, 1, 1]");
-      const bool auto_grid = g == Eigen::Vector3d::Zero();
-      for (int a = 0; a < 3; ++a) {
-        if (g[a] != std::floor(g[a]) || (!auto_grid && g[a] < 1) || g[a] > 65536)
-          throw InputError("/parallel/grid/" + std::to_string(a),
-                           "expected a whole number >= 1, got " + fmt(g[a]) +
-                               "; give boxes per axis whose product is the rank count, or [0, 0, 0] to choose");
-        p.grid[a] = static_cast<int>(g[a]);
-      }
-    }
-    p.balance_interval = static_cast<std::uint64_t>(
-        o.number("balance_interval", static_cast<double>(p.balance_interval), Range::non_negative(), "steps",
-                 "steps between load-balance checks, e.g. 500, or 0 to keep the first cuts"));
-    p.cost = o.choice("cost", p.cost, {"work", "time"});
-  }
-
-  // blocks (rigid ice blocks and their conversion)
-  if (root.has("blocks")) {
-    const Obj o(root.raw("blocks"), "/blocks");
-    auto& b = s.blocks;
-    s.has_blocks = true;
-    b.ridge_file = o.string("ridge_file", "", false, "an HDF5 ridge file written by `hybridsim ridge`");
-    if (!b.ridge_file.empty()) {
-      const std::filesystem::path fp(b.ridge_file);
-      b.ridge_file_path = fp.is_absolute() || base_dir.empty() ? fp.string() : (std::filesystem::path(base_dir) / fp).string();
-      if (!std::filesystem::exists(b.ridge_file_path))
-        throw InputError("/blocks/ridge_file", "cannot find " + b.ridge_file_path +
-                                                   " (relative to the scene file); make it with `hybridsim ridge "
-                                                   "<ridge scene>.json -o <file>` or fix the path");
-    }
-    b.offset = o.vec<3>("offset", b.offset, "m", "shift of the ridge file's blocks, e.g. [30, 0, 0]");
-    for (const char* key : {"keep_x", "keep_y"}) {
-      const Eigen::Vector2d r = o.vec<2>(key, Eigen::Vector2d(-1e30, 1e30), "m",
-                                         "[min, max] of the block centres kept from the ridge file (after offset)");
-      if (!(r[0] < r[1])) throw InputError(o.at(key), "min must be < max; e.g. [-10, 10]");
-      (std::string(key) == "keep_x" ? b.keep_x : b.keep_y) = {r[0], r[1]};
-    }
-    b.keep_sail = o.boolean("keep_sail", b.keep_sail);
-    if (o.has("list")) {
-      const json& arr = o.raw("list");
-      if (!arr.is_array())
-        throw InputError("/blocks/list", "expected an array of blocks [{\"half_extents\": [..], \"position\": [..]}, ...]");
-      for (std::size_t k = 0; k < arr.size(); ++k) {
-        const Obj bo(arr[k], "/blocks/list/" + std::to_string(k));
-        BlockItemDef it;
-        it.half_extents = bo.vec<3>("half_extents", it.half_extents, "m", "half sizes along the block's axes");
-        for (int a = 0; a < 3; ++a)
-          if (!(it.half_extents[a] > 0.0))
-            throw InputError(bo.at("half_extents") + "/" + std::to_string(a), "must be > 0 (m)");
-        it.position = bo.vec<3>("position", it.position, "m", "centre of the block");
-        const Eigen::Vector4d q = bo.vec<4>("orientation", Eigen::Vector4d(1, 0, 0, 0), "",
-                                            "unit quaternion [w, x, y, z], body to world");
-        if (!(q.norm() > 1e-12)) throw InputError(bo.at("orientation"), "must be a non-zero quaternion [w, x, y, z]");
-        it.orientation = Quat(q[0], q[1], q[2], q[3]).normalized();
-        it.velocity = bo.vec<3>("velocity", it.velocity, "m/s", "initial velocity");
-        it.angular_velocity = bo.vec<3>("angular_velocity", it.angular_velocity, "rad/s", "initial angular velocity");
-        b.list.push_back(it);
-      }
-    }
-    if (b.ridge_file.empty() && b.list.empty())
-      throw InputError("/blocks", "no blocks: give \"ridge_file\" (from `hybridsim ridge`) or a \"list\", or remove "
-                                  "the \"blocks\" section");
-    b.density = o.number("density", s.material.density, Range::positive(), "kg/m^3", "ice density, e.g. 920");
-    b.friction = o.number("friction", s.material.friction, Range::non_negative(), "", "ice-ice Coulomb coefficient");
-    b.linear_drag = o.number("linear_drag", b.linear_drag, Range::non_negative(), "Pa s/m",
-                             "linear drag per wetted face area (heave damper), e.g. 1000");
-    b.drag_coefficient = o.number("drag_coefficient", b.drag_coefficient, Range::non_negative(), "", "e.g. 1.0");
-    b.solver_iterations = static_cast<int>(o.number("solver_iterations", b.solver_iterations, {1.0, 1000.0}, "",
-                                                    "Bullet sequential-impulse iterations, e.g. 20"));
-    b.rigid_dt = o.number("rigid_dt", b.rigid_dt, Range::non_negative(), "s",
-                          "rigid step; 0 = the largest the stability rule allows (docs/bridge.md)");
-    b.conversion = o.choice("conversion", b.conversion, {"hybrid", "all_at_start", "never"});
-    b.safety_factor = o.number("safety_factor", b.safety_factor, Range::positive(), "",
-                               "a block converts when its stress utilisation x safety_factor >= 1; > 1 converts earlier");
-    b.flexural_strength = o.number("flexural_strength", s.analysis.flexural_strength, Range::positive(), "Pa",
-                                   "flexural strength of a block, e.g. 0.5e6");
-    b.stress_time_constant = o.number("stress_time_constant", b.stress_time_constant, Range::non_negative(), "s",
-                                      "time constant of the filter on each block's stress utilisation, e.g. 0.05");
-    if (o.has("region")) {
-      const Obj r(o.raw("region"), "/blocks/region");
-      auto& g = b.region;
-      g.shape = r.choice("shape", g.shape, {"cylinder", "box"});
-      g.offset = r.vec<3>("offset", g.offset, "m", "centre relative to the structure's mesh origin");
-      g.radius = r.number("radius", g.radius, Range::non_negative(), "m", "0 = structure radius + 5 m");
-      g.z_min = r.number("z_min", g.z_min, Range::any(), "m", "bottom of the cylinder, relative to the offset");
-      g.z_max = r.number("z_max", g.z_max, Range::any(), "m", "top of the cylinder, relative to the offset");
-      if (!(g.z_min < g.z_max)) throw InputError("/blocks/region/z_max", "must be > z_min");
-      g.half_extents = r.vec<3>("half_extents", g.half_extents, "m", "half sizes of the box region");
-      if (g.shape == "box" && !(g.half_extents.minCoeff() > 0.0))
-        throw InputError("/blocks/region/half_extents", "a box region needs three half extents > 0, e.g. [15, 15, 10]");
-    }
-  }
+  read_ice(root, s);
+  read_walls(root, s);
+  read_structure(root, s, base_dir);
+  read_analysis(root, s);
+  read_stability(root, s);
+  read_parallel(root, s);
+  read_blocks(root, s, base_dir);
   return s;
 }
 
 Scene load_scene_file(const std::string& path, const std::vector<std::string>& overrides) {
   json j = read_json_file(path);
-  if (!j.is_object()) throw InputError("/", "the scene must be a JSON object {...}, got " + got(j));
+  if (!j.is_object()) throw InputError("/", "the scene must be a JSON object {...}, got " + json_got(j));
   for (const auto& o : overrides) apply_override(j, o);
   return parse_scene(j, std::filesystem::path(path).parent_path().string());
 }

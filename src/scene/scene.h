@@ -6,12 +6,14 @@
 // and the blocks from it.
 // Every problem is an hs::InputError whose path is the JSON pointer of the offending value
 // ("/ice/thickness") and whose message gives the bad value, what is allowed and the fix.
-// Unknown keys are errors with a did-you-mean suggestion. Fields, units and defaults:
-// docs/scene.md; JSON Schema for editors: docs/scene.schema.json.
+// Unknown keys are errors with a did-you-mean suggestion. The reading is the shared JSON
+// reader's (src/json/reader.h); parse_scene has one function per section. Fields, units
+// and defaults: docs/scene.md; JSON Schema for editors: docs/scene.schema.json.
 #pragma once
 
 #include "bonded/engine.h"  // bonded::ContactModel only (moves to src/common with the contact-law dispatch)
 #include "common/types.h"
+#include "json/reader.h"
 #include "mesh/pier.h"
 
 #include <nlohmann/json.hpp>
@@ -188,11 +190,9 @@ struct Scene {
 };
 
 // ---- reading ----
-/// Parses JSON text; syntax errors become InputError(source, "invalid JSON at line L,
-/// column C: ..."). `source` names the text (file name) in messages.
-nlohmann::json parse_json_text(const std::string& text, const std::string& source);
-/// Reads a file and parses it; a missing or unreadable file is an InputError(path, ...).
-nlohmann::json read_json_file(const std::string& path);
+/// Text and files to JSON: the shared reader's (src/json/reader.h), here for scene users.
+using hs::parse_json_text;
+using hs::read_json_file;
 /// Sets one field from "path.to.field=value" (the value is parsed as JSON, else taken as a
 /// string). Array elements by index: "walls.0.velocity=[-0.5,0,0]". Missing objects along
 /// the path are created. Throws InputError naming the path if it does not exist in the

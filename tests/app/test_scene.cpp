@@ -381,6 +381,13 @@ TEST(SceneBlocks, DefaultsAndErrors) {
   expect_error([&] { scene::parse_scene(k); }, "/blocks/region/half_extents", "three half extents");
   k["blocks"] = json::parse(R"({"list": [{}], "keep_x": [5, 1]})");
   expect_error([&] { scene::parse_scene(k); }, "/blocks/keep_x", "min must be < max");
+  // Counts are whole numbers (20.5 used to be cut to 20); 20.0 is 20.
+  k["blocks"] = json::parse(R"({"list": [{}], "solver_iterations": 20.5})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/solver_iterations", "expected a whole number, got 20.5");
+  k["blocks"] = json::parse(R"({"list": [{}], "solver_iterations": 30.0})");
+  EXPECT_EQ(scene::parse_scene(k).blocks.solver_iterations, 30);
+  expect_bad("/parallel/balance_interval", 500.5, "/parallel/balance_interval", "whole number");
+  expect_bad("/parallel/balance_interval", -1, "/parallel/balance_interval", "must be >= 0");
 }
 
 TEST(SceneStructure, MeshFileRelativeToTheSceneFile) {

@@ -291,6 +291,13 @@ TEST(Ridge, JsonValidation) {
             std::string::npos);
   EXPECT_NE(path_of({{"seed", -1}}).find("/ridge/seed"), std::string::npos);
   EXPECT_NE(path_of({{"settle", {{"dt", 0.5}}}}).find("/ridge/settle/dt"), std::string::npos);
+  // The shared reader's messages: the value and its unit; null means "not given".
+  EXPECT_NE(path_of({{"keel_depth", "deep"}}).find("expected a number in m, got string \"deep\""), std::string::npos)
+      << path_of({{"keel_depth", "deep"}});
+  EXPECT_NE(path_of({{"seed", 1.5}}).find("/ridge/seed | /ridge/seed: expected a whole number"), std::string::npos);
+  EXPECT_EQ(ridge_def_from_json({{"keel_width", nullptr}, {"sail_width", nullptr}}, "/ridge").keel_width, -1.0);
+  EXPECT_EQ(ridge_def_from_json({{"seed", 18446744073709551615ULL}}, "/ridge").seed, 18446744073709551615ULL);
+  EXPECT_EQ(ridge_def_from_json({{"placement_candidates", 4.0}}, "/ridge").placement_candidates, 4);
   // Full round trip through JSON.
   const RidgeDef s = small_def();
   EXPECT_EQ(ridge_def_to_json(ridge_def_from_json(ridge_def_to_json(s), "/ridge")), ridge_def_to_json(s));
