@@ -5,6 +5,7 @@
 #include "analysis/pile_height.h"
 #include "bonded/engine.h"
 #include "common/error.h"
+#include "common/ice_formulas.h"
 #include "io/run_file.h"
 #include "parallel/comm.h"
 #include "scene/scene.h"
@@ -153,10 +154,6 @@ Pieces find_pieces(const bonded::Engine& e, const par::Comm& comm) {
     out.extent.push_back(std::max(a.x1 - a.x0, a.y1 - a.y0));
   }
   return out;
-}
-
-double characteristic_length(double E, double h, double rho_w, double g, double nu) {
-  return std::pow(E * h * h * h / (12.0 * rho_w * g * (1.0 - nu * nu)), 0.25);
 }
 
 /// Appends the /analysis groups to a closed run file (HDF5 C API; RunFile has no attributes).

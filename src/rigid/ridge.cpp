@@ -3,6 +3,7 @@
 
 #include "common/did_you_mean.h"
 #include "common/error.h"
+#include "common/ice_formulas.h"
 #include "rigid/rigid_world.h"
 
 #include <algorithm>
@@ -229,13 +230,13 @@ class HashGrid {
 double keel_half_width(const RidgeDef& d) {
   if (!d.keel_profile.empty())
     return std::max(std::abs(d.keel_profile.front().position), std::abs(d.keel_profile.back().position));
-  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  const double dli = flotation_draft(d.level_ice_thickness, d.ice_density, d.water_density);
   if (d.keel_width > 0.0) return 0.5 * d.keel_width;
   return std::max(0.0, d.keel_depth - dli) / std::tan(d.shoulder_slope_deg * kDeg);
 }
 double sail_half_width(const RidgeDef& d) {
   if (d.sail_height <= 0.0) return 0.0;
-  const double fli = d.level_ice_thickness * (1.0 - d.ice_density / d.water_density);
+  const double fli = flotation_freeboard(d.level_ice_thickness, d.ice_density, d.water_density);
   if (d.sail_width > 0.0) return 0.5 * d.sail_width;
   return std::max(0.0, d.sail_height - fli) / std::tan(d.sail_slope_deg * kDeg);
 }
@@ -281,12 +282,12 @@ std::vector<double> sample_log_aspect(const AspectLognormal& a, std::size_t n, s
 double ice_draft(const RidgeDef& d, double x) {
   const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
                                                                   : d.level_ice_thickness;
-  return t * d.ice_density / d.water_density;
+  return flotation_draft(t, d.ice_density, d.water_density);
 }
 double ice_freeboard(const RidgeDef& d, double x) {
   const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
                                                                   : d.level_ice_thickness;
-  return t * (1.0 - d.ice_density / d.water_density);
+  return flotation_freeboard(t, d.ice_density, d.water_density);
 }
 
 double keel_target_depth(const RidgeDef& d, double x) {
@@ -303,14 +304,14 @@ double keel_target_depth(const RidgeDef& d, double x) {
   }
   const double hw = keel_half_width(d);
   if (std::abs(x) >= hw) return 0.0;
-  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  const double dli = flotation_draft(d.level_ice_thickness, d.ice_density, d.water_density);
   return std::min(d.keel_depth, dli + (hw - std::abs(x)) * std::tan(d.shoulder_slope_deg * kDeg));
 }
 
 double sail_target_height(const RidgeDef& d, double x) {
   const double hw = sail_half_width(d);
   if (std::abs(x) >= hw) return 0.0;
-  const double fli = d.level_ice_thickness * (1.0 - d.ice_density / d.water_density);
+  const double fli = flotation_freeboard(d.level_ice_thickness, d.ice_density, d.water_density);
   return std::min(d.sail_height, fli + (hw - std::abs(x)) * std::tan(d.sail_slope_deg * kDeg));
 }
 
@@ -383,7 +384,7 @@ void validate(const RidgeDef& d, const std::string& P) {
   req(d.ice_density > 0.0 && d.ice_density < d.water_density, "ice_density",
       "must be > 0 and below water_density (kg/m^3)");
   req(d.water_density > 0.0, "water_density", "must be > 0 (kg/m^3)");
-  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  const double dli = flotation_draft(d.level_ice_thickness, d.ice_density, d.water_density);
   const double fli = d.level_ice_thickness - dli;
   req(d.shoulder_slope_deg > 0.0 && d.shoulder_slope_deg < 90.0, "shoulder_slope_deg",
       "must be in (0, 90) degrees");
