@@ -392,8 +392,8 @@ Scene parse_scene(const json& j, const std::string& base_dir) {
     m.restitution = o.number("restitution", m.restitution, {0.0, 1.0, true, false}, "",
                              "coefficient of restitution of contacts, e.g. 0.3");
     m.friction = o.number("friction", m.friction, Range::non_negative(), "", "Coulomb coefficient, e.g. 0.3");
-    const std::string cm = o.choice("contact_model", "linear", {"linear", "hertz"});
-    m.contact_model = cm == "hertz" ? bonded::ContactModel::HertzMindlin : bonded::ContactModel::LinearSpringDashpot;
+    const std::string cm = o.choice("contact_model", contact_model_name(ContactModel::LinearSpringDashpot), contact_model_names());
+    m.contact_model = contact_model_from_name(cm);
     if (o.has("stiffness"))
       m.stiffness = o.number("stiffness", 0.0, Range::positive(), "N/m",
                              "omit it for the paper's Eq. 1, pi E D / 12");
