@@ -2,6 +2,7 @@
 #include "analysis/iso19906.h"
 
 #include "common/error.h"
+#include "common/ice_formulas.h"
 #include "json/reader.h"
 
 #include <array>
@@ -175,7 +176,7 @@ IsoResult compute_iso(const IsoInputs& in) {
 
   IsoResult r;
   r.xi = (sin(a) + mu * cos(a)) / (cos(a) - mu * sin(a));
-  r.L_c = pow(E * h * h * h / (12.0 * rho_w * g * (1.0 - nu * nu)), 0.25);
+  r.L_c = characteristic_length(E, h, rho_w, g, nu);
   r.l = w + pi * pi * r.L_c / 4.0;
   r.H_B = 0.68 * r.xi * sigma_f * pow(rho_w * g * pow(h, 5) / E, 0.25) * r.l;
   r.H_P = w * h_r * h_r * mu_i * gamma_r * slope_factor * slope_factor / (2.0 * tan(th));

@@ -15,6 +15,7 @@
 
 #include "bonded/engine.h"
 #include "bonded/hcp_lattice.h"
+#include "common/ice_formulas.h"
 
 #include <nlohmann/json.hpp>
 
@@ -51,7 +52,7 @@ EngineDef ice_def(double restitution, double friction) {
   EngineDef d;
   d.youngs_modulus = kE;
   d.density = kRho;
-  d.contact.kn = d.contact.kt = kPi * kE * kD / 12.0;  // paper Eq. 1
+  d.contact.kn = d.contact.kt = eq1_contact_stiffness(kE, kD);  // paper Eq. 1
   d.contact.zeta_n = d.contact.zeta_t = damping_ratio_from_restitution(restitution);
   d.contact.mu = friction;
   return d;

@@ -12,6 +12,7 @@
 // Inputs and output follow contact_linear.h (n from i to j, force on j).
 #pragma once
 
+#include "common/ice_formulas.h"
 #include "contact_linear.h"
 
 namespace hs::bonded {
@@ -54,5 +55,42 @@ inline ContactResult hertz_contact(const HertzContactParams& p, double delta, do
 inline double hertz_contact_energy(const HertzContactParams& p, double delta, double r_star) {
   return (8.0 / 15.0) * p.e_star * std::sqrt(r_star) * std::pow(delta, 2.5);
 }
+
+/// The Hertz-Mindlin law behind the dispatch point (contact_law.h; docs/engine.md).
+struct HertzLaw {
+  static constexpr ContactModel kModel = ContactModel::HertzMindlin;
+  HertzContactParams p;
+  double reference_overlap = 0.02;  ///< overlap / radius at which the time-step check takes the stiffness
+
+  template <class Def>
+  [[gnu::always_inline]] static HertzLaw from_def(const Def& d) {
+    return {d.hertz, d.hertz_reference_overlap};
+  }
+  [[gnu::always_inline]] HertzLaw with_friction(double mu) const {
+    HertzLaw l = *this;
+    l.p.mu = mu;
+    return l;
+  }
+  [[gnu::always_inline]] ContactResult force(double delta, double r_star, const Vec3& n, double vn, const Vec3& vt, double m_eff,
+                      double dt, Vec3& xi) const {
+    return hertz_contact(p, delta, r_star, n, vn, vt, m_eff, dt, xi);
+  }
+  /// Normal (Hertz) plus tangential spring energy 1/2 S_t |xi|^2.
+  [[gnu::always_inline]] double energy(double delta, double r_star, const Vec3& xi) const {
+    const double st = 8.0 * p.g_star * std::sqrt(r_star * delta);
+    return hertz_contact_energy(p, delta, r_star) + 0.5 * st * xi.squaredNorm();
+  }
+  /// S_n, S_t of two particles of the smallest radius at the reference overlap; the damping ratio
+  /// gamma / (2 sqrt(S m_eff)) = sqrt(5/6) |beta| does not depend on the overlap.
+  ContactStiffness time_step_stiffness(double r_min) const {
+    const double rs = 0.5 * r_min;
+    const double a = std::sqrt(rs * reference_overlap * r_min);
+    return {2.0 * p.e_star * a, 8.0 * p.g_star * a, std::sqrt(5.0 / 6.0) * (-p.beta)};
+  }
+  /// The stiffness varies with the overlap: paper Eq. 1 (pi E D / 12) sizes other steps.
+  double reference_stiffness(double youngs_modulus, double diameter) const {
+    return eq1_contact_stiffness(youngs_modulus, diameter);
+  }
+};
 
 }  // namespace hs::bonded

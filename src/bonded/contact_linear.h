@@ -21,8 +21,10 @@
 // Output: force on j (the force on i is its negative).
 #pragma once
 
+#include "common/contact_model.h"
 #include "common/types.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace hs::bonded {
@@ -91,5 +93,42 @@ inline ContactResult linear_contact(const LinearContactParams& p, double delta, 
 inline double linear_contact_energy(const LinearContactParams& p, double delta, const Vec3& xi) {
   return 0.5 * p.kn * delta * delta + 0.5 * p.kt * xi.squaredNorm();
 }
+
+/// Spring constants and damping ratio of a contact law for the engine's time-step check
+/// (Engine::critical_time_step): the stiffest contact between the smallest particles.
+struct ContactStiffness {
+  double kn = 0.0;    ///< normal, N/m
+  double kt = 0.0;    ///< tangential, N/m
+  double zeta = 0.0;  ///< largest damping ratio (normal or tangential)
+};
+
+/// The linear law behind the dispatch point (contact_law.h; docs/engine.md, "Adding a contact law").
+struct LinearLaw {
+  static constexpr ContactModel kModel = ContactModel::LinearSpringDashpot;
+  LinearContactParams p;
+
+  /// Its parameters from an EngineDef (a template: engine.h includes this file).
+  template <class Def>
+  [[gnu::always_inline]] static LinearLaw from_def(const Def& d) {
+    return {d.contact};
+  }
+  /// The same law against a surface with its own friction (walls, meshes, rigid blocks).
+  [[gnu::always_inline]] LinearLaw with_friction(double mu) const {
+    LinearLaw l = *this;
+    l.p.mu = mu;
+    return l;
+  }
+  [[gnu::always_inline]] ContactResult force(double delta, double /*r_star*/, const Vec3& n, double vn, const Vec3& vt, double m_eff,
+                      double dt, Vec3& xi) const {
+    return linear_contact(p, delta, n, vn, vt, m_eff, dt, xi);
+  }
+  [[gnu::always_inline]] double energy(double delta, double /*r_star*/, const Vec3& xi) const { return linear_contact_energy(p, delta, xi); }
+  /// Constant springs: k_n, k_t and the larger damping ratio, whatever the particle size.
+  ContactStiffness time_step_stiffness(double /*r_min*/) const {
+    return {p.kn, p.kt, std::max(p.zeta_n, p.zeta_t)};
+  }
+  /// One stiffness that sizes other steps (the rigid step, HybridSystem): k_n.
+  double reference_stiffness(double /*youngs_modulus*/, double /*diameter*/) const { return p.kn; }
+};
 
 }  // namespace hs::bonded

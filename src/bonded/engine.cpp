@@ -1,37 +1,33 @@
 #include "engine.h"
 
 #include "common/error.h"
+#include "common/ice_formulas.h"
 
 #include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <type_traits>
 #include <unordered_map>
 
 namespace hs::bonded {
 
 namespace {
 
-// Law adaptors: one signature for the pair loop, so it is compiled once per law.
-struct LinearLaw {
-  LinearContactParams p;
-  ContactResult operator()(double delta, double /*r_star*/, const Vec3& n, double vn,
-                           const Vec3& vt, double m_eff, double dt, Vec3& xi) const {
-    return linear_contact(p, delta, n, vn, vt, m_eff, dt, xi);
+// The pair loop is instantiated per law with this file-local wrapper: each instantiation then has
+// internal linkage and one caller, so the compiler inlines it into evaluate_forces, as it did
+// when the laws were file-local types. Inlining decides where multiply-adds are fused (and, through
+// the unit's growth budget, what else is inlined in this file), and the run outputs are pinned
+// bit for bit (tools/series_hash.py): keep the compiled shape when changing the force paths.
+template <class Law>
+struct PairLaw {
+  Law law;
+  ContactResult force(double delta, double r_star, const Vec3& n, double vn, const Vec3& vt, double m_eff, double dt,
+                      Vec3& xi) const {
+    return law.force(delta, r_star, n, vn, vt, m_eff, dt, xi);
   }
-  double energy(double delta, double, const Vec3& xi) const { return linear_contact_energy(p, delta, xi); }
-};
-struct HertzLaw {
-  HertzContactParams p;
-  ContactResult operator()(double delta, double r_star, const Vec3& n, double vn, const Vec3& vt,
-                           double m_eff, double dt, Vec3& xi) const {
-    return hertz_contact(p, delta, r_star, n, vn, vt, m_eff, dt, xi);
-  }
-  double energy(double delta, double r_star, const Vec3& xi) const {
-    const double st = 8.0 * p.g_star * std::sqrt(r_star * delta);
-    return hertz_contact_energy(p, delta, r_star) + 0.5 * st * xi.squaredNorm();
-  }
+  double energy(double delta, double r_star, const Vec3& xi) const { return law.energy(delta, r_star, xi); }
 };
 
 // Rotate q by the world-frame rotation vector phi = w dt (exact exponential map).
@@ -73,7 +69,7 @@ void Engine::note_radius(double r) {
   if (r < min_radius_) {
     min_radius_ = r;
     if (dt_auto_)  // Eq. 2 follows the smallest particle
-      dt_ = def_.dt_alpha * 2.0 * min_radius_ * std::sqrt(def_.density / def_.youngs_modulus);
+      dt_ = hs::eq2_time_step(def_.dt_alpha, 2.0 * min_radius_, def_.density, def_.youngs_modulus);
   }
 }
 
@@ -197,7 +193,7 @@ double Engine::eq2_time_step() const {
   for (std::size_t i = 0; i < ps_.owned(); ++i) rmin = std::min(rmin, ps_.radius[i]);
   rmin = -global_max(-rmin);
   if (!std::isfinite(rmin)) return 0.0;
-  return def_.dt_alpha * 2.0 * rmin * std::sqrt(def_.density / def_.youngs_modulus);
+  return hs::eq2_time_step(def_.dt_alpha, 2.0 * rmin, def_.density, def_.youngs_modulus);
 }
 
 double Engine::critical_time_step() const {
@@ -221,19 +217,9 @@ double Engine::critical_time_step() const {
   if (inv_m == 0.0) return INFINITY;
   const double m = 1.0 / inv_m;
   // Contact springs (identical particles at worst-case mass, inertia and lever arm).
-  double kn, kt, zeta;
-  if (def_.contact_model == ContactModel::LinearSpringDashpot) {
-    kn = def_.contact.kn;
-    kt = def_.contact.kt;
-    zeta = std::max(def_.contact.zeta_n, def_.contact.zeta_t);
-  } else {
-    const double rs = 0.5 * rmin;
-    const double a = std::sqrt(rs * def_.hertz_reference_overlap * rmin);
-    kn = 2.0 * def_.hertz.e_star * a;
-    kt = 8.0 * def_.hertz.g_star * a;
-    // gamma = 2 sqrt(5/6) |beta| sqrt(S m_eff)  =>  zeta = gamma / (2 sqrt(S m_eff)) = sqrt(5/6) |beta|
-    zeta = std::sqrt(5.0 / 6.0) * (-def_.hertz.beta);
-  }
+  const ContactStiffness cs = with_contact_law(def_, [&](const auto& law) { return law.time_step_stiffness(rmin); });
+  const double kn = cs.kn, kt = cs.kt;
+  double zeta = cs.zeta;
   const double s_contact = 2.0 * inv_m * kn + kt * (2.0 * inv_m + 2.0 * r * r * inv_i);
   double s_bond = 0.0;
   for (int k = 0; k < 2; ++k) {
@@ -464,14 +450,11 @@ void Engine::field_forces() {
 ContactResult Engine::wall_contact(double delta, double r, const Vec3& n, double vn, const Vec3& vt,
                                    double m, double friction, Vec3& xi) const {
   // A wall is a sphere of infinite radius and mass: R* = r, m_eff = m.
-  if (def_.contact_model == ContactModel::LinearSpringDashpot) {
-    LinearContactParams p = def_.contact;
-    p.mu = friction;
-    return linear_contact(p, delta, n, vn, vt, m, history_dt_, xi);
-  }
-  HertzContactParams p = def_.hertz;
-  p.mu = friction;
-  return hertz_contact(p, delta, r, n, vn, vt, m, history_dt_, xi);
+  // always_inline: the early inliner then sees the body it saw before the law dispatch (copy the
+  // parameters, set mu, call the law), and so makes the same choices (see PairLaw above).
+  return with_contact_law(def_, [&](const auto& law) __attribute__((always_inline)) {
+    return law.with_friction(friction).force(delta, r, n, vn, vt, m, history_dt_, xi);
+  });
 }
 
 void Engine::wall_forces() {
@@ -606,7 +589,7 @@ void Engine::pair_forces(const Law& law) {
     const double vn = vrel.dot(n);
     const Vec3 vt = vrel - vn * n;
     const double rstar = r[i] * r[j] / rs;
-    const ContactResult res = law(delta, rstar, n, vn, vt, 1.0 / inv_sum, dt, p.xi);
+    const ContactResult res = law.force(delta, rstar, n, vn, vt, 1.0 / inv_sum, dt, p.xi);
     f[j] += res.force;
     f[i] -= res.force;
     t[i] -= ai.cross(res.force);
@@ -689,10 +672,7 @@ void Engine::evaluate_forces(double history_dt, bool finish) {
   wall_forces();
   if (!meshes_.empty()) mesh_forces();
   if (!sources_.empty()) source_forces();
-  if (def_.contact_model == ContactModel::LinearSpringDashpot)
-    pair_forces(LinearLaw{def_.contact});
-  else
-    pair_forces(HertzLaw{def_.hertz});
+  with_contact_law(def_, [&](const auto& law) { pair_forces(PairLaw<std::decay_t<decltype(law)>>{law}); });
   bond_forces();
   const double dt_force = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   pstats_.force_seconds += dt_force;
@@ -861,9 +841,12 @@ EnergyReport Engine::energy() const {
     const double dist = (ps_.x[p.j] - ps_.x[p.i]).norm();
     if (dist >= rs) continue;
     const double rstar = ps_.radius[p.i] * ps_.radius[p.j] / rs;
+    // Written as a conditional on the model rather than through with_contact_law: that is the form
+    // in which GCC fuses this sum's multiply-adds as it did before the dispatch, and the energy
+    // series is pinned bit for bit (each lambda form tried fused the other product; docs/engine.md).
     e.contact_elastic += def_.contact_model == ContactModel::LinearSpringDashpot
-                             ? LinearLaw{def_.contact}.energy(rs - dist, rstar, p.xi)
-                             : HertzLaw{def_.hertz}.energy(rs - dist, rstar, p.xi);
+                             ? PairLaw<LinearLaw>{LinearLaw::from_def(def_)}.energy(rs - dist, rstar, p.xi)
+                             : PairLaw<HertzLaw>{HertzLaw::from_def(def_)}.energy(rs - dist, rstar, p.xi);
   }
   if (parallel()) {  // every bond and contact pair lives on exactly one rank
     double v[6] = {e.kinetic_translational, e.kinetic_rotational, e.gravity_potential,

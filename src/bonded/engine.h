@@ -16,8 +16,7 @@
 
 #include "bond_parallel.h"
 #include "mesh/sphere_mesh_contact.h"
-#include "contact_hertz.h"
-#include "contact_linear.h"
+#include "contact_law.h"
 #include "particle_store.h"
 #include "wall.h"
 #include "water.h"
@@ -34,7 +33,6 @@
 
 namespace hs::bonded {
 
-enum class ContactModel { LinearSpringDashpot, HertzMindlin };
 enum class BondKind : std::uint8_t { Lattice = 0, Freeze = 1 };
 
 /// Blow-up detection: the run stops with a diagnostic instead of writing garbage.
@@ -50,7 +48,7 @@ struct EngineDef {
   double poisson_ratio = 0.3;
   double density = 920.0;            ///< rho of the particles' material, for Eq. 2
   Vec3 gravity{0.0, 0.0, -9.81};
-  ContactModel contact_model = ContactModel::LinearSpringDashpot;
+  ContactModel contact_model = ContactModel::LinearSpringDashpot;  ///< the law (contact_law.h)
   LinearContactParams contact;       ///< particle-particle (linear law)
   HertzContactParams hertz;          ///< particle-particle (Hertz law)
   double hertz_reference_overlap = 0.02;  ///< overlap/radius used for Hertz stiffness in the dt check

@@ -8,14 +8,15 @@
 // the lattice to weigh and float like the solid ice it stands for.
 #pragma once
 
+#include "common/hcp_geometry.h"
 #include "common/types.h"
 
 #include <vector>
 
 namespace hs::bonded {
 
-inline double hcp_layer_spacing(double D) { return D * 0.81649658092772603; }  // sqrt(2/3)
-inline double hcp_cell_volume(double D) { return D * D * D * 0.70710678118654752; }
+using ::hs::hcp_cell_volume;    // common/hcp_geometry.h
+using ::hs::hcp_layer_spacing;  // common/hcp_geometry.h
 
 struct Pose {
   Vec3 position = Vec3::Zero();

@@ -2,6 +2,7 @@
 
 #include "bridge/block_bonds.h"
 #include "bridge/block_contact.h"
+#include "bridge/conversion_criteria.h"
 
 #include "common/error.h"
 
@@ -137,20 +138,13 @@ struct HybridSystem::Impl {
   }
 };
 
-HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const std::vector<BlockInit>& blocks,
-                           const std::vector<JointInit>& joints, const std::vector<IceJointInit>& ice_joints)
-    : impl_(std::make_unique<Impl>()), engine_(engine) {
-  Impl& m = *impl_;
-  m.def = def;
-  report_.blocks_initial = blocks.size();
-  report_.peak_particles = static_cast<std::int64_t>(engine.particles().owned());
-  if (blocks.empty()) return;  // no Bullet world
-  // The block-particle bonds made here are a list replicated on every rank; made after
-  // distribute() each rank would see only its own particles.
-  if (engine.parallel())
-    throw std::logic_error("HybridSystem: build it before Engine::distribute() (its freeze bonds are replicated)");
+namespace {
 
-  // ---- the rigid step: the stability rule, then a whole number of DEM steps ----
+/// The rigid step (docs/bridge.md, "Multi-rate stepping"): the stability rule's limit, checked
+/// against the requested step, rounded down to a whole number of DEM steps. Fills the report's
+/// rigid_dt_limit, steps_per_rigid_step and rigid_dt.
+void choose_rigid_step(const bonded::Engine& engine, const HybridDef& def, const std::vector<BlockInit>& blocks,
+                       bool has_freeze_joints, HybridReport& report) {
   RigidStepInputs rs;
   rs.min_mass_per_face_area = INFINITY;
   Vec3 governing = Vec3::Zero();
@@ -167,41 +161,43 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   if (!std::isfinite(rs.min_mass_per_face_area)) rs.min_mass_per_face_area = 1e30;  // only fixed blocks
   rs.particle_diameter = def.ice.diameter;
   const auto& ed = engine.def();
-  rs.contact_stiffness = ed.contact_model == bonded::ContactModel::LinearSpringDashpot
-                             ? ed.contact.kn
-                             : kPi * ed.youngs_modulus * def.ice.diameter / 12.0;  // Eq. 1 as the scale
+  rs.contact_stiffness = bonded::with_contact_law(
+      ed, [&](const auto& law) { return law.reference_stiffness(ed.youngs_modulus, def.ice.diameter); });
   rs.safety = def.rigid_dt_safety;
-  report_.rigid_dt_limit = max_rigid_step(rs);
+  report.rigid_dt_limit = max_rigid_step(rs);
   const double dt = engine.dt();
   if (!(dt > 0.0))
     throw InputError("/time/dt", "the DEM step is not set (no particles to take it from, paper Eq. 2); give time.dt");
-  if (def.rigid_dt > report_.rigid_dt_limit * (1.0 + 1e-12)) {
+  if (def.rigid_dt > report.rigid_dt_limit * (1.0 + 1e-12)) {
     std::ostringstream msg;
-    msg << "rigid step " << def.rigid_dt << " s exceeds the stability limit " << report_.rigid_dt_limit
+    msg << "rigid step " << def.rigid_dt << " s exceeds the stability limit " << report.rigid_dt_limit
         << " s (thinnest block " << governing.x() << " x " << governing.y() << " x " << governing.z()
         << " m: " << rs.min_mass_per_face_area << " kg per m^2 of its largest face, pressed by close-packed "
         << "particles of D = " << rs.particle_diameter << " m with contact stiffness " << rs.contact_stiffness
-        << " N/m; docs/bridge.md, \"Multi-rate stepping\"); set rigid_dt <= " << report_.rigid_dt_limit
+        << " N/m; docs/bridge.md, \"Multi-rate stepping\"); set rigid_dt <= " << report.rigid_dt_limit
         << " or 0 to use the limit";
     throw InputError("/blocks/rigid_dt", msg.str());
   }
-  const double h_wanted = def.rigid_dt > 0.0 ? def.rigid_dt : report_.rigid_dt_limit;
+  const double h_wanted = def.rigid_dt > 0.0 ? def.rigid_dt : report.rigid_dt_limit;
   const auto k = static_cast<std::uint64_t>(std::max(1.0, std::floor(h_wanted / dt + 1e-9)));
   // Block-particle freeze bonds (from ice joints now, or from block joints at conversions) with
   // no damping are negatively damped by the lagging block reaction when k > 1 (docs/bridge.md,
   // "Block-particle freeze bonds", Limits): refused.
   const auto& fb = engine.def().bond[static_cast<int>(bonded::BondKind::Freeze)];
-  if (k > 1 && (!ice_joints.empty() || !joints.empty()) && fb.kn > 0.0 && fb.gamma_n == 0.0 &&
-      fb.gamma_s == 0.0)
+  if (k > 1 && has_freeze_joints && fb.kn > 0.0 && fb.gamma_n == 0.0 && fb.gamma_s == 0.0)
     throw InputError("/bonds/damping_ratio",
                      "block-particle freeze bonds without damping are unstable with a rigid step of " +
                          std::to_string(k) + " DEM steps; set bonds.damping_ratio > 0 (e.g. 0.1) or "
                          "blocks.rigid_dt to the DEM step");
-  report_.steps_per_rigid_step = k;
-  report_.rigid_dt = static_cast<double>(k) * dt;
+  report.steps_per_rigid_step = k;
+  report.rigid_dt = static_cast<double>(k) * dt;
+}
 
+/// The rigid world's definition at the chosen rigid step.
+rigid::RigidWorldDef hybrid_world_def(const bonded::Engine& engine, const HybridDef& def, double rigid_dt) {
+  const auto& fb = engine.def().bond[static_cast<int>(bonded::BondKind::Freeze)];
   rigid::RigidWorldDef wd = def.world;
-  wd.dt = report_.rigid_dt;
+  wd.dt = rigid_dt;
   // Bullet's position correction pushes at erp x error / dt: keep the push of a 60 Hz world
   // (erp 0.2 at 1/60 s) at the much smaller rigid step, unless the caller set erp.
   const double erp_scaled = std::min(0.2, 0.2 * wd.dt * 60.0);
@@ -218,40 +214,27 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   // drift corrections (docs/bridge.md, "Freeze joints between blocks").
   if (!def.rigid_joints && !(wd.joint_stiffness > 0.0) && fb.kn > 0.0)
     wd.joint_stiffness = fb.kn / (0.5 * std::sqrt(3.0) * def.ice.diameter * def.ice.diameter);
-  world_ = std::make_unique<rigid::RigidWorld>(wd);
+  return wd;
+}
+
+}  // namespace
+
+HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const std::vector<BlockInit>& blocks,
+                           const std::vector<JointInit>& joints, const std::vector<IceJointInit>& ice_joints)
+    : impl_(std::make_unique<Impl>()), engine_(engine) {
+  Impl& m = *impl_;
+  m.def = def;
+  report_.blocks_initial = blocks.size();
+  report_.peak_particles = static_cast<std::int64_t>(engine.particles().owned());
+  if (blocks.empty()) return;  // no Bullet world
+  // The block-particle bonds made here are a list replicated on every rank; made after
+  // distribute() each rank would see only its own particles.
+  if (engine.parallel())
+    throw std::logic_error("HybridSystem: build it before Engine::distribute() (its freeze bonds are replicated)");
+  choose_rigid_step(engine, def, blocks, !ice_joints.empty() || !joints.empty(), report_);
+  world_ = std::make_unique<rigid::RigidWorld>(hybrid_world_def(engine, def, report_.rigid_dt));
   if (def.has_structure) m.mesh = world_->add_kinematic_mesh(def.structure);
-  std::vector<rigid::BlockId> ids;
-  ids.reserve(blocks.size());
-  for (const auto& b : blocks) {
-    rigid::BlockDef bd = b.def;
-    if (!bd.fixed) {
-      const Vec3 shift = clearing_shift(engine, bd.half_extents, bd.position, bd.orientation);
-      if (!shift.isZero(0.0)) {
-        bd.position += shift;
-        ++report_.blocks_moved_clear;
-        report_.max_clearing_shift = std::max(report_.max_clearing_shift, shift.norm());
-      }
-    }
-    ids.push_back(world_->add_block(bd));
-  }
-  for (const auto& j : joints)
-    world_->add_freeze_joint(rigid::FreezeJointDef{ids.at(j.a), ids.at(j.b), j.anchor, j.normal, j.area});
-  report_.blocks_now = world_->block_count();
-  m.coupler.reset(world_->blocks());
-  m.ids = world_->blocks();
-  for (std::size_t k = 0; k < m.ids.size(); ++k) {
-    const rigid::BlockId id = m.ids[k];
-    ContactBlock cb;
-    cb.id = (static_cast<std::uint64_t>(id.generation) << 32) | id.index;
-    cb.half_extents = world_->half_extents(id);
-    cb.position = world_->position(id);
-    cb.orientation = world_->orientation(id);
-    cb.velocity = world_->velocity(id);
-    cb.angular_velocity = world_->angular_velocity(id);
-    cb.mass = world_->fixed(id) ? INFINITY : world_->mass(id);
-    cb.friction = def.block_friction;
-    m.contact.add_block(cb);
-  }
+  const std::vector<rigid::BlockId> ids = add_blocks(blocks, joints);
   m.take_reference(*world_);
   m.extrapolate(world_->time());
   for (const auto& j : ice_joints)
@@ -268,6 +251,44 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
         ++report_.conversions_refused;
       }
     }
+}
+
+std::vector<rigid::BlockId> HybridSystem::add_blocks(const std::vector<BlockInit>& blocks,
+                                                     const std::vector<JointInit>& joints) {
+  Impl& m = *impl_;
+  std::vector<rigid::BlockId> ids;
+  ids.reserve(blocks.size());
+  for (const auto& b : blocks) {
+    rigid::BlockDef bd = b.def;
+    if (!bd.fixed) {  // moved clear of the particles
+      const Vec3 shift = clearing_shift(engine_, bd.half_extents, bd.position, bd.orientation);
+      if (!shift.isZero(0.0)) {
+        bd.position += shift;
+        ++report_.blocks_moved_clear;
+        report_.max_clearing_shift = std::max(report_.max_clearing_shift, shift.norm());
+      }
+    }
+    ids.push_back(world_->add_block(bd));
+  }
+  for (const auto& j : joints)
+    world_->add_freeze_joint(rigid::FreezeJointDef{ids.at(j.a), ids.at(j.b), j.anchor, j.normal, j.area});
+  report_.blocks_now = world_->block_count();
+  m.coupler.reset(world_->blocks());
+  m.ids = world_->blocks();
+  for (std::size_t k = 0; k < m.ids.size(); ++k) {  // the particles' view of every block
+    const rigid::BlockId id = m.ids[k];
+    ContactBlock cb;
+    cb.id = (static_cast<std::uint64_t>(id.generation) << 32) | id.index;
+    cb.half_extents = world_->half_extents(id);
+    cb.position = world_->position(id);
+    cb.orientation = world_->orientation(id);
+    cb.velocity = world_->velocity(id);
+    cb.angular_velocity = world_->angular_velocity(id);
+    cb.mass = world_->fixed(id) ? INFINITY : world_->mass(id);
+    cb.friction = m.def.block_friction;
+    m.contact.add_block(cb);
+  }
+  return ids;
 }
 
 HybridSystem::~HybridSystem() {
@@ -338,98 +359,122 @@ std::vector<T> gathered_on_root(const par::Comm& comm, const std::vector<T>& rec
   return out;
 }
 
+/// The particle side's loads on the blocks in the last force evaluation, gathered on rank 0.
+/// Under MPI each rank holds the contacts and block-particle bonds of its own particles.
+struct ParticleSideLoads {
+  std::vector<std::vector<PointLoad>> contact;  ///< by contact block k (the world's slot order)
+  std::vector<std::vector<PointLoad>> bond;     ///< by block slot (BlockParticleBonds' numbering)
+  std::vector<double> bond_u_tension, bond_u_shear;  ///< by block slot: the largest of its bonds
+};
+
+ParticleSideLoads gather_particle_side_loads(const par::Comm& comm, const BlockContact& contact,
+                                             const BlockParticleBonds& bonds, std::size_t n_blocks) {
+  ParticleSideLoads g;
+  g.contact.resize(n_blocks);
+  for (const auto& pf : gathered_on_root(comm, contact.recorded())) g.contact[pf.block].push_back({pf.point, pf.force});
+  for (const auto& bf : gathered_on_root(comm, bonds.recorded())) {
+    if (g.bond.size() <= bf.block) {
+      g.bond.resize(bf.block + 1);
+      g.bond_u_tension.resize(bf.block + 1, 0.0);
+      g.bond_u_shear.resize(bf.block + 1, 0.0);
+    }
+    g.bond[bf.block].push_back({bf.point, bf.force});
+    g.bond_u_tension[bf.block] = std::max(g.bond_u_tension[bf.block], bf.u_tension);
+    g.bond_u_shear[bf.block] = std::max(g.bond_u_shear[bf.block], bf.u_shear);
+  }
+  return g;
+}
+
+/// Block `id` (contact block k)'s loads for the conversion criteria, written over `out`: its joints
+/// and rigid contacts from the world, then the particle side's contacts and bonds.
+void collect_block_loads(const rigid::RigidWorld& world, rigid::BlockId id, std::size_t k,
+                         const ParticleSideLoads& g, BlockLoads& out) {
+  out.box = BlockBox{world.half_extents(id), world.position(id), world.orientation(id)};
+  out.joints.clear();
+  for (const rigid::JointId j : world.joints_of(id)) {
+    const rigid::JointLoad L = world.joint_load(j);
+    out.joints.push_back({L.tension, L.shear, world.joint_area(j)});
+  }
+  out.loads.clear();
+  for (const auto& c : world.contact_forces(id)) out.loads.push_back({c.point, c.force});
+  for (const auto& pf : g.contact[k]) out.loads.push_back(pf);
+  out.bond_u_tension = out.bond_u_shear = 0.0;
+  if (id.index < g.bond.size()) {
+    for (const auto& bf : g.bond[id.index]) out.loads.push_back(bf);
+    out.bond_u_tension = g.bond_u_tension[id.index];
+    out.bond_u_shear = g.bond_u_shear[id.index];
+  }
+}
+
+/// Rank 0's decisions to every rank: (slot, generation, governing criterion) triples.
+void share_decisions(const par::Comm& comm, std::vector<rigid::BlockId>& to_convert, std::vector<int>& governing) {
+  std::string msg;
+  if (comm.rank() == 0)
+    for (std::size_t k = 0; k < to_convert.size(); ++k) {
+      const std::uint32_t rec3[3] = {to_convert[k].index, to_convert[k].generation,
+                                     static_cast<std::uint32_t>(governing[k])};
+      msg.append(reinterpret_cast<const char*>(rec3), sizeof rec3);
+    }
+  msg = comm.broadcast(msg);
+  to_convert.clear();
+  governing.clear();
+  for (std::size_t o = 0; o + 12 <= msg.size(); o += 12) {
+    std::uint32_t rec3[3];
+    std::memcpy(rec3, msg.data() + o, sizeof rec3);
+    to_convert.push_back(rigid::BlockId{rec3[0], rec3[1]});
+    governing.push_back(static_cast<int>(rec3[2]));
+  }
+}
+
+/// One conversion governed by criterion c (conversion_criteria()).
+void count_conversion(HybridReport& r, int c) {
+  const auto k = static_cast<std::size_t>(c);
+  if (r.conversions_by_criterion.size() <= k) r.conversions_by_criterion.resize(conversion_criteria().size(), 0);
+  ++r.conversions_by_criterion[k];
+  if (k == kFreezeBondCriterion) ++r.conversions_freeze;
+  if (k == kFlexureCriterion) ++r.conversions_flexure;
+}
+
 }  // namespace
 
 void HybridSystem::apply_policy() {
   Impl& m = *impl_;
   const Vec3 sp = m.mesh >= 0 ? world_->mesh_position(m.mesh) : Vec3::Zero();
-  const FreezeBondStrength strength{m.def.world.freeze_bond_strength,
-                                    m.def.world.freeze_bond_shear_strength < 0.0
-                                        ? m.def.world.freeze_bond_strength
-                                        : m.def.world.freeze_bond_shear_strength};
-  // Particle contact forces on each block in the last force evaluation (recorded by BlockContact).
-  // Under MPI each rank holds the contacts of its own particles: they are gathered on rank 0,
-  // which decides, and the list of blocks to convert is broadcast, so that every rank's
-  // replicated world converts the same blocks.
-  // The same for the block-particle freeze bonds (recorded by BlockParticleBonds, by block slot):
-  // their forces are loads on the block for the flexural estimate, and their stress over strength
-  // counts in the freeze-bond estimate beside the joints'.
+  ConversionStrengths strengths;
+  strengths.freeze = {m.def.world.freeze_bond_strength, m.def.world.freeze_bond_shear_strength < 0.0
+                                                            ? m.def.world.freeze_bond_strength
+                                                            : m.def.world.freeze_bond_shear_strength};
+  strengths.flexural_strength = m.def.flexural_strength;
+  // Rank 0 gathers the particle side's loads, decides, and broadcasts the list of blocks to
+  // convert, so that every rank's replicated world converts the same blocks. The block-particle
+  // freeze bonds' forces are loads for the flexural criterion, and their stress over strength
+  // counts in the freeze-bond criterion beside the joints'.
   const par::Comm& comm = engine_.comm();
-  std::vector<std::vector<PointLoad>> particle_loads(m.ids.size());
-  for (const auto& pf : gathered_on_root(comm, m.contact.recorded())) particle_loads[pf.block].push_back({pf.point, pf.force});
-  std::vector<std::vector<PointLoad>> bond_loads;
-  std::vector<double> bond_u_tension, bond_u_shear;
-  for (const auto& bf : gathered_on_root(comm, m.bonds.recorded())) {
-    if (bond_loads.size() <= bf.block) {
-      bond_loads.resize(bf.block + 1);
-      bond_u_tension.resize(bf.block + 1, 0.0);
-      bond_u_shear.resize(bf.block + 1, 0.0);
-    }
-    bond_loads[bf.block].push_back({bf.point, bf.force});
-    bond_u_tension[bf.block] = std::max(bond_u_tension[bf.block], bf.u_tension);
-    bond_u_shear[bf.block] = std::max(bond_u_shear[bf.block], bf.u_shear);
-  }
+  const ParticleSideLoads gathered = gather_particle_side_loads(comm, m.contact, m.bonds, m.ids.size());
   std::vector<rigid::BlockId> to_convert;
-  std::vector<bool> by_freeze;
-  std::vector<FreezeJointSample> joints;
-  std::vector<PointLoad> loads;
+  std::vector<int> governing;  // index into conversion_criteria()
+  BlockLoads block;
   const bool decide_here = comm.rank() == 0;
   // m.ids is the world's block list (slot order); k indexes it, the contact blocks and the loads.
   for (std::size_t k = 0; decide_here && k < m.ids.size(); ++k) {
     const rigid::BlockId id = m.ids[k];
     if (world_->fixed(id)) continue;  // fixed blocks are walls and floors, not ice
     if (id.index < m.unconvertible.size() && m.unconvertible[id.index]) continue;
-    const Vec3 x = world_->position(id), half = world_->half_extents(id);
-    if (!m.def.region.contains_block(sp, x, half)) continue;
-    joints.clear();
-    for (const rigid::JointId j : world_->joints_of(id)) {
-      const rigid::JointLoad L = world_->joint_load(j);
-      joints.push_back({L.tension, L.shear, world_->joint_area(j)});
-    }
-    loads.clear();
-    for (const auto& c : world_->contact_forces(id)) loads.push_back({c.point, c.force});
-    for (const auto& pf : particle_loads[k]) loads.push_back(pf);
-    FreezeBondEstimate fe = freeze_bond_estimate(joints, strength);
-    if (id.index < bond_loads.size()) {
-      for (const auto& bf : bond_loads[id.index]) loads.push_back(bf);
-      const double ut = bond_u_tension[id.index], us = bond_u_shear[id.index];
-      if (std::max(ut, us) > fe.utilisation) {  // a block-particle bond governs (no joint index)
-        const auto& fb = engine_.def().bond[static_cast<int>(bonded::BondKind::Freeze)];
-        fe.utilisation = std::max(ut, us);
-        fe.mode = ut >= us ? FreezeBondMode::Tension : FreezeBondMode::Shear;
-        fe.joint = FreezeBondEstimate::kNoJoint;
-        fe.stress = ut >= us ? ut * fb.sigma_c : us * fb.tau_c;
-      }
-    }
-    const FlexureEstimate fl =
-        flexure_estimate(BlockBox{half, x, world_->orientation(id)}, loads, m.def.flexural_strength);
-    const BlockStress st = block_stress(fe, fl);
+    if (!m.def.region.contains_block(sp, world_->position(id), world_->half_extents(id))) continue;
+    collect_block_loads(*world_, id, k, gathered, block);
+    const ConversionDecision dec = evaluate_criteria(block, strengths);
     if (m.u_filtered.size() <= id.index) m.u_filtered.resize(id.index + 1, 0.0);
     double& u = m.u_filtered[id.index];
     const double tau = m.def.stress_time_constant;
-    u = tau > 0.0 ? u + (st.utilisation() - u) * std::min(1.0, report_.rigid_dt / tau) : st.utilisation();
+    u = tau > 0.0 ? u + (dec.utilisation - u) * std::min(1.0, report_.rigid_dt / tau) : dec.utilisation;
     report_.max_utilisation = std::max(report_.max_utilisation, u);
     if (converts(u, m.def.safety_factor)) {
       to_convert.push_back(id);
-      by_freeze.push_back(st.governing == StressMode::FreezeBond);
+      governing.push_back(dec.governing);
     }
   }
-  if (comm.parallel()) {  // rank 0's decision to every rank: (slot, generation, by_freeze) triples
-    std::string msg;
-    if (decide_here)
-      for (std::size_t k = 0; k < to_convert.size(); ++k) {
-        const std::uint32_t rec3[3] = {to_convert[k].index, to_convert[k].generation, by_freeze[k] ? 1u : 0u};
-        msg.append(reinterpret_cast<const char*>(rec3), sizeof rec3);
-      }
-    msg = comm.broadcast(msg);
-    to_convert.clear();
-    by_freeze.clear();
-    for (std::size_t o = 0; o + 12 <= msg.size(); o += 12) {
-      std::uint32_t rec3[3];
-      std::memcpy(rec3, msg.data() + o, sizeof rec3);
-      to_convert.push_back(rigid::BlockId{rec3[0], rec3[1]});
-      by_freeze.push_back(rec3[2] != 0);
-    }
+  if (comm.parallel()) {
+    share_decisions(comm, to_convert, governing);
     double mu = report_.max_utilisation;
     comm.max(&mu, 1);
     report_.max_utilisation = mu;
@@ -444,7 +489,7 @@ void HybridSystem::apply_policy() {
       ++report_.conversions_refused;
       continue;
     }
-    ++(by_freeze[k] ? report_.conversions_freeze : report_.conversions_flexure);
+    count_conversion(report_, governing[k]);
   }
 }
 

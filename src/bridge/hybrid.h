@@ -70,6 +70,8 @@ struct HybridReport {
   std::uint64_t rigid_steps = 0;
   std::uint64_t conversions_freeze = 0;   ///< conversions governed by the freeze-bond estimate
   std::uint64_t conversions_flexure = 0;  ///< ... by the flexural estimate
+  /// Conversions by governing criterion, indexed like conversion_criteria() (empty before the first).
+  std::vector<std::uint64_t> conversions_by_criterion;
   std::uint64_t joints_released = 0;      ///< freeze joints removed with converted blocks
   double max_utilisation = 0.0;           ///< largest max(u_freeze, u_flex) seen in the region
   std::uint64_t conversions_refused = 0;   ///< blocks the converter could not fill (thinner than
@@ -178,6 +180,9 @@ class HybridSystem {
   struct Impl;
   std::unique_ptr<Impl> impl_;
   void apply_policy();
+  /// The starting blocks (moved clear of the particles) and their joints into the world, and
+  /// every block into the particle contact; returns the blocks' ids in `blocks` order.
+  std::vector<rigid::BlockId> add_blocks(const std::vector<BlockInit>& blocks, const std::vector<JointInit>& joints);
   bonded::Engine& engine_;
   std::unique_ptr<rigid::RigidWorld> world_;
   HybridReport report_;

@@ -2,6 +2,7 @@
 #include "rigid/ridge.h"
 
 #include "common/error.h"
+#include "common/ice_formulas.h"
 #include "json/reader.h"
 #include "rigid/rigid_world.h"
 
@@ -229,13 +230,13 @@ class HashGrid {
 double keel_half_width(const RidgeDef& d) {
   if (!d.keel_profile.empty())
     return std::max(std::abs(d.keel_profile.front().position), std::abs(d.keel_profile.back().position));
-  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  const double dli = flotation_draft(d.level_ice_thickness, d.ice_density, d.water_density);
   if (d.keel_width > 0.0) return 0.5 * d.keel_width;
   return std::max(0.0, d.keel_depth - dli) / std::tan(d.shoulder_slope_deg * kDeg);
 }
 double sail_half_width(const RidgeDef& d) {
   if (d.sail_height <= 0.0) return 0.0;
-  const double fli = d.level_ice_thickness * (1.0 - d.ice_density / d.water_density);
+  const double fli = flotation_freeboard(d.level_ice_thickness, d.ice_density, d.water_density);
   if (d.sail_width > 0.0) return 0.5 * d.sail_width;
   return std::max(0.0, d.sail_height - fli) / std::tan(d.sail_slope_deg * kDeg);
 }
@@ -281,12 +282,12 @@ std::vector<double> sample_log_aspect(const AspectLognormal& a, std::size_t n, s
 double ice_draft(const RidgeDef& d, double x) {
   const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
                                                                   : d.level_ice_thickness;
-  return t * d.ice_density / d.water_density;
+  return flotation_draft(t, d.ice_density, d.water_density);
 }
 double ice_freeboard(const RidgeDef& d, double x) {
   const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
                                                                   : d.level_ice_thickness;
-  return t * (1.0 - d.ice_density / d.water_density);
+  return flotation_freeboard(t, d.ice_density, d.water_density);
 }
 
 double keel_target_depth(const RidgeDef& d, double x) {
@@ -303,14 +304,14 @@ double keel_target_depth(const RidgeDef& d, double x) {
   }
   const double hw = keel_half_width(d);
   if (std::abs(x) >= hw) return 0.0;
-  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  const double dli = flotation_draft(d.level_ice_thickness, d.ice_density, d.water_density);
   return std::min(d.keel_depth, dli + (hw - std::abs(x)) * std::tan(d.shoulder_slope_deg * kDeg));
 }
 
 double sail_target_height(const RidgeDef& d, double x) {
   const double hw = sail_half_width(d);
   if (std::abs(x) >= hw) return 0.0;
-  const double fli = d.level_ice_thickness * (1.0 - d.ice_density / d.water_density);
+  const double fli = flotation_freeboard(d.level_ice_thickness, d.ice_density, d.water_density);
   return std::min(d.sail_height, fli + (hw - std::abs(x)) * std::tan(d.sail_slope_deg * kDeg));
 }
 
@@ -383,7 +384,7 @@ void validate(const RidgeDef& d, const std::string& P) {
   req(d.ice_density > 0.0 && d.ice_density < d.water_density, "ice_density",
       "must be > 0 and below water_density (kg/m^3)");
   req(d.water_density > 0.0, "water_density", "must be > 0 (kg/m^3)");
-  const double dli = d.level_ice_thickness * d.ice_density / d.water_density;
+  const double dli = flotation_draft(d.level_ice_thickness, d.ice_density, d.water_density);
   const double fli = d.level_ice_thickness - dli;
   req(d.shoulder_slope_deg > 0.0 && d.shoulder_slope_deg < 90.0, "shoulder_slope_deg",
       "must be in (0, 90) degrees");
@@ -450,49 +451,67 @@ void validate(const RidgeDef& d, const std::string& P) {
 }  // namespace
 
 // ---------------------------------------------------------------- generator
-RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress) {
-  validate(def, "ridge");
-  const auto wall0 = std::chrono::steady_clock::now();
-  RidgeResult res;
-  res.def = def;
-  const RidgeDef& d = def;
-  Rng rng(d.seed);
-  double lnm, lns;
-  d.aspect.log_params(lnm, lns);
-  const double gap = d.joints.gap;
-  const double h_blk = d.block_thickness;
+// generate_ridge runs the phases below in order (docs/ridge.md): the ice sheet, placement
+// (greedy deposition into the target envelope), the rigid world, compaction and settling,
+// freeze joints, and the report (achieved profile and porosity). The random stream is drawn
+// in placement only, in a fixed order, so a seed gives the same ridge bit for bit.
+namespace {
 
-  auto report = [&](const char* phase, double t, double ke, std::size_t n) {
+/// State shared by the phases: the definition, the random stream, the progress callback.
+struct RidgeRun {
+  const RidgeDef& d;
+  const RidgeProgressFn& progress;
+  Rng rng;
+  double lnm = 0.0, lns = 0.0;  ///< log-normal parameters of the aspect ratio
+  double kx = 0.0, sx = 0.0;    ///< keel and sail half widths, m
+  double ice_half = 0.0;        ///< half width of the ice sheet, m
+  double wcl = 0.0;             ///< width of the consolidated layer within it, m
+
+  RidgeRun(const RidgeDef& def, const RidgeProgressFn& p) : d(def), progress(p), rng(def.seed) {
+    d.aspect.log_params(lnm, lns);
+  }
+  void report(const char* phase, double t, double ke, std::size_t n) const {
     if (!progress) return;
-    RidgeProgress p;
-    p.phase = phase;
-    p.time = t;
-    p.max_time = d.settle.max_time;
-    p.kinetic_energy_per_block = ke;
-    p.blocks = n;
-    progress(p);
-  };
+    RidgeProgress q;
+    q.phase = phase;
+    q.time = t;
+    q.max_time = d.settle.max_time;
+    q.kinetic_energy_per_block = ke;
+    q.blocks = n;
+    progress(q);
+  }
+};
 
-  // Ice sheet: fixed boxes (level ice left/right, consolidated layer in the middle).
-  const double kx = keel_half_width(d), sx = sail_half_width(d);
-  const double ice_half = std::max(kx, sx) + d.level_ice_margin;
-  const double wcl = std::min(d.consolidated_layer_width, 2.0 * ice_half);
+/// Ice sheet: fixed boxes (level ice left/right, consolidated layer in the middle).
+void add_ice_sheet(RidgeRun& run, std::vector<IceBox>& ice) {
+  const RidgeDef& d = run.d;
+  run.kx = keel_half_width(d);
+  run.sx = sail_half_width(d);
+  run.ice_half = std::max(run.kx, run.sx) + d.level_ice_margin;
+  run.wcl = std::min(d.consolidated_layer_width, 2.0 * run.ice_half);
   auto ice_box = [&](double x0, double x1, double t, int part) {
     if (x1 - x0 <= 0.0) return;
-    const double draft = t * d.ice_density / d.water_density;
+    const double draft = flotation_draft(t, d.ice_density, d.water_density);
     IceBox b;
     b.half_extents = Vec3(0.5 * (x1 - x0), 0.5 * d.length, 0.5 * t);
     b.position = Vec3(0.5 * (x0 + x1), 0.5 * d.length, 0.5 * t - draft);
     b.part = part;
-    res.ice.push_back(b);
+    ice.push_back(b);
   };
-  ice_box(-ice_half, -0.5 * wcl, d.level_ice_thickness, 0);
-  ice_box(-0.5 * wcl, 0.5 * wcl, d.consolidated_layer_thickness, 1);
-  ice_box(0.5 * wcl, ice_half, d.level_ice_thickness, 0);
+  ice_box(-run.ice_half, -0.5 * run.wcl, d.level_ice_thickness, 0);
+  ice_box(-0.5 * run.wcl, 0.5 * run.wcl, d.consolidated_layer_thickness, 1);
+  ice_box(0.5 * run.wcl, run.ice_half, d.level_ice_thickness, 0);
+}
 
-  // Envelope thickness on a fine x grid -> volumes and the x sampling distribution.
-  const double dxs = 0.02;
-  auto make_cdf = [&](bool keel, double hw, std::vector<double>& xs, std::vector<double>& cdf) {
+/// Target envelope (keel or sail) on a fine x grid: its thickness integrated over x gives the
+/// volume and the distribution of block x positions.
+struct Envelope {
+  std::vector<double> xs, cdf;
+  double volume = 0.0;  ///< m^3
+
+  Envelope() = default;
+  Envelope(const RidgeDef& d, bool keel, double hw) {
+    const double dxs = 0.02;
     double lo = -hw, hi = hw;
     if (keel && !d.keel_profile.empty()) lo = d.keel_profile.front().position, hi = d.keel_profile.back().position;
     const int n = std::max(2, static_cast<int>(std::ceil((hi - lo) / dxs)));
@@ -505,43 +524,104 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
     };
     for (int i = 1; i <= n; ++i)
       cdf[i] = cdf[i - 1] + 0.5 * (thick(xs[i - 1]) + thick(xs[i])) * (xs[i] - xs[i - 1]);
-    return cdf.back() * d.length;  // envelope volume
-  };
-  std::vector<double> kxs, kcdf, sxs, scdf;
-  const double keel_env = make_cdf(true, kx, kxs, kcdf);
-  const double sail_env = d.sail_height > 0.0 ? make_cdf(false, sx, sxs, scdf) : 0.0;
-  res.stats.keel_target_volume = keel_env;
-  auto sample_x = [&](const std::vector<double>& xs, const std::vector<double>& cdf) {
+    volume = cdf.back() * d.length;
+  }
+  /// An x drawn with density proportional to the envelope thickness.
+  double sample_x(Rng& rng) const {
     const double u = rng.uniform() * cdf.back();
     auto it = std::upper_bound(cdf.begin(), cdf.end(), u);
     const std::size_t i = std::clamp<std::size_t>(it - cdf.begin(), 1, cdf.size() - 1);
     const double c0 = cdf[i - 1], c1 = cdf[i];
     const double t = c1 > c0 ? (u - c0) / (c1 - c0) : 0.5;
     return xs[i - 1] + t * (xs[i] - xs[i - 1]);
-  };
+  }
+};
 
-  // ---- placement: non-overlapping piles hanging under / standing on the ice, packed by
-  // greedy deposition (docs/ridge.md, Method 3): every block tries placement_candidates
-  // poses, each translated along z from the ice to the first free position (exact: the
-  // z range where two boxes overlap is an interval, found with the 15 SAT axes), and keeps
-  // the one that ends least deep relative to the local target depth. Holes are filled
-  // before the pile grows, so the column starts denser (porosity ~0.6 instead of ~0.8)
-  // and shaped like the target, and the rise is short.
+// ---- placement: non-overlapping piles hanging under / standing on the ice, packed by
+// greedy deposition (docs/ridge.md, Method 3): every block tries placement_candidates
+// poses, each translated along z from the ice to the first free position (exact: the
+// z range where two boxes overlap is an interval, found with the 15 SAT axes), and keeps
+// the one that ends least deep relative to the local target depth. Holes are filled
+// before the pile grows, so the column starts denser (porosity ~0.6 instead of ~0.8)
+// and shaped like the target, and the rise is short.
+class Placement {
+ public:
+  Placement(RidgeRun& run, const Envelope& keel, const Envelope& sail)
+      : run_(run), d_(run.d), keel_(keel), sail_(sail), gap_(run.d.joints.gap), h_blk_(run.d.block_thickness),
+        zreach_(3.0 * std::max(run.d.keel_depth, run.d.sail_height) + 20.0 * run.d.block_thickness) {}
+
+  /// Adds blocks to the keel (or sail) until their volume reaches volume_target; returns it.
+  double fill(bool keel, double volume_target) {
+    double vol = 0.0;
+    while (vol < volume_target) {
+      const double L = h_blk_ * std::exp(sample_ln_r(run_.rng, run_.lnm, run_.lns));
+      const double B = L * run_.rng.uniform(d_.width_fraction_min, d_.width_fraction_max);
+      Placed best;
+      double best_score = std::numeric_limits<double>::infinity();
+      for (int c = 0; c < d_.placement_candidates; ++c) {
+        double score = 0.0;
+        const Placed p = candidate(keel, L, B, score);
+        if (score < best_score) best_score = score, best = p;
+      }
+      const std::int32_t id = static_cast<std::int32_t>(placed.size());
+      placed.push_back(best);
+      grid_.insert(id, best.x - best.aabb - Vec3::Constant(gap_), best.x + best.aabb + Vec3::Constant(gap_));
+      vol += 8.0 * best.h.prod();
+      if (placed.size() % 2000 == 0) run_.report("place", 0.0, 0.0, placed.size());
+    }
+    return vol;
+  }
+
   std::vector<Placed> placed;
-  HashGrid grid(2.0);
-  std::vector<std::int32_t> cand;
-  const double zreach = 3.0 * std::max(d.keel_depth, d.sail_height) + 20.0 * h_blk;  // search depth, m
-  // Highest (keel: t <= 0, moving down) / lowest (sail: t >= 0, moving up) shift t of p
-  // along z with no overlap (boxes inflated by gap/2 each).
-  std::vector<std::pair<double, double>> ivals;
-  auto free_shift = [&](const Placed& p, bool keel) {
+
+ private:
+  /// One candidate pose of an L x B block, dropped from the ice to its first free position;
+  /// score: how far it reaches into the envelope, as a fraction of the local thickness (the
+  /// emptiest place wins; > 1: it sticks out of the envelope).
+  Placed candidate(bool keel, double L, double B, double& score) {
+    Rng& rng = run_.rng;
+    Placed p;
+    p.h = Vec3(0.5 * L, 0.5 * B, 0.5 * h_blk_);
+    p.part = keel ? 0 : 1;
+    const double x = (keel ? keel_ : sail_).sample_x(rng);
+    if (d_.max_tilt_deg >= 90.0) {
+      p.q = rng.rotation();
+    } else {  // random yaw, then a tilt of U(0, max) about a random horizontal axis
+      const double yaw = kTwoPi * rng.uniform(), az = kTwoPi * rng.uniform();
+      const double tilt = d_.max_tilt_deg * kDeg * rng.uniform();
+      p.q = Quat(Eigen::AngleAxisd(tilt, Vec3(std::cos(az), std::sin(az), 0.0))) *
+            Quat(Eigen::AngleAxisd(yaw, Vec3::UnitZ()));
+    }
+    double y = rng.uniform();
+    p.R = p.q.toRotationMatrix();
+    p.aabb = aabb_half(p.h, p.R);
+    const double ylo = p.aabb.y() + gap_, yhi = d_.length - p.aabb.y() - gap_;
+    y = ylo < yhi ? ylo + y * (yhi - ylo) : 0.5 * d_.length;
+    // Start just clear of the ice over the block's x range.
+    const double xl = x - p.aabb.x(), xr = x + p.aabb.x();
+    const bool over_cl = xl < 0.5 * run_.wcl && xr > -0.5 * run_.wcl;
+    const double t_ice = over_cl ? d_.consolidated_layer_thickness : d_.level_ice_thickness;
+    const double ice_z = keel ? -flotation_draft(t_ice, d_.ice_density, d_.water_density) - gap_ - p.aabb.z()
+                              : flotation_freeboard(t_ice, d_.ice_density, d_.water_density) + gap_ + p.aabb.z();
+    p.x = Vec3(x, y, ice_z);
+    p.x.z() += free_shift(p, keel);
+    const double reach_z = keel ? -(p.x.z() - p.aabb.z()) : p.x.z() + p.aabb.z();
+    const double target = keel ? keel_target_depth(d_, x) : sail_target_height(d_, x);
+    score = target > 0.0 ? reach_z / target : std::numeric_limits<double>::infinity();
+    return p;
+  }
+
+  /// Highest (keel: t <= 0, moving down) / lowest (sail: t >= 0, moving up) shift t of p
+  /// along z with no overlap (boxes inflated by gap/2 each).
+  double free_shift(const Placed& p, bool keel) {
+    const double gap = gap_;
     const Vec3 hp = p.h + Vec3::Constant(0.5 * gap);
     Vec3 lo = p.x - p.aabb - Vec3::Constant(gap), hi = p.x + p.aabb + Vec3::Constant(gap);
-    if (keel) lo.z() -= zreach;
-    else hi.z() += zreach;
-    grid.query(lo, hi, cand);
-    ivals.clear();
-    for (std::int32_t id : cand) {
+    if (keel) lo.z() -= zreach_;
+    else hi.z() += zreach_;
+    grid_.query(lo, hi, cand_);
+    ivals_.clear();
+    for (std::int32_t id : cand_) {
       const Placed& o = placed[id];
       const Vec3 dd = o.x - p.x;
       if (std::abs(dd.x()) > p.aabb.x() + o.aabb.x() + gap || std::abs(dd.y()) > p.aabb.y() + o.aabb.y() + gap)
@@ -568,76 +648,71 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
           const double nc = c.norm();
           if (nc >= 1e-6) axis(c / nc);
         }
-      if (tlo < thi) ivals.emplace_back(tlo, thi);
+      if (tlo < thi) ivals_.emplace_back(tlo, thi);
     }
     double t = 0.0;
     for (bool moved = true; moved;) {
       moved = false;
-      for (const auto& [a, b] : ivals)
+      for (const auto& [a, b] : ivals_)
         if (a < t && t < b) {
           t = keel ? a : b;
           moved = true;
         }
     }
     return t;
-  };
-  const int ncand = d.placement_candidates;
-  auto fill = [&](bool keel, double volume_target) {
-    const std::vector<double>& xs = keel ? kxs : sxs;
-    const std::vector<double>& cdf = keel ? kcdf : scdf;
-    double vol = 0.0;
-    while (vol < volume_target) {
-      const double L = h_blk * std::exp(sample_ln_r(rng, lnm, lns));
-      const double B = L * rng.uniform(d.width_fraction_min, d.width_fraction_max);
-      Placed best;
-      double best_score = std::numeric_limits<double>::infinity();
-      for (int c = 0; c < ncand; ++c) {
-        Placed p;
-        p.h = Vec3(0.5 * L, 0.5 * B, 0.5 * h_blk);
-        p.part = keel ? 0 : 1;
-        const double x = sample_x(xs, cdf);
-        if (d.max_tilt_deg >= 90.0) {
-          p.q = rng.rotation();
-        } else {  // random yaw, then a tilt of U(0, max) about a random horizontal axis
-          const double yaw = kTwoPi * rng.uniform(), az = kTwoPi * rng.uniform();
-          const double tilt = d.max_tilt_deg * kDeg * rng.uniform();
-          p.q = Quat(Eigen::AngleAxisd(tilt, Vec3(std::cos(az), std::sin(az), 0.0))) *
-                Quat(Eigen::AngleAxisd(yaw, Vec3::UnitZ()));
-        }
-        double y = rng.uniform();
-        p.R = p.q.toRotationMatrix();
-        p.aabb = aabb_half(p.h, p.R);
-        const double ylo = p.aabb.y() + gap, yhi = d.length - p.aabb.y() - gap;
-        y = ylo < yhi ? ylo + y * (yhi - ylo) : 0.5 * d.length;
-        // Start just clear of the ice over the block's x range.
-        const double xl = x - p.aabb.x(), xr = x + p.aabb.x();
-        const bool over_cl = xl < 0.5 * wcl && xr > -0.5 * wcl;
-        const double t_ice = over_cl ? d.consolidated_layer_thickness : d.level_ice_thickness;
-        const double ice_z = keel ? -t_ice * d.ice_density / d.water_density - gap - p.aabb.z()
-                                  : t_ice * (1.0 - d.ice_density / d.water_density) + gap + p.aabb.z();
-        p.x = Vec3(x, y, ice_z);
-        p.x.z() += free_shift(p, keel);
-        // Score: how far the block reaches into the envelope, as a fraction of its
-        // local thickness (the emptiest place wins; > 1: it sticks out of the envelope).
-        const double reach_z = keel ? -(p.x.z() - p.aabb.z()) : p.x.z() + p.aabb.z();
-        const double target = keel ? keel_target_depth(d, x) : sail_target_height(d, x);
-        const double score = target > 0.0 ? reach_z / target : std::numeric_limits<double>::infinity();
-        if (score < best_score) best_score = score, best = p;
-      }
-      const std::int32_t id = static_cast<std::int32_t>(placed.size());
-      placed.push_back(best);
-      grid.insert(id, best.x - best.aabb - Vec3::Constant(gap), best.x + best.aabb + Vec3::Constant(gap));
-      vol += 8.0 * best.h.prod();
-      if (placed.size() % 2000 == 0) report("place", 0.0, 0.0, placed.size());
-    }
-    return vol;
-  };
-  res.stats.keel_block_volume = fill(true, (1.0 - d.fill_porosity) * keel_env);
-  res.stats.sail_block_volume = sail_env > 0.0 ? fill(false, (1.0 - d.fill_porosity) * sail_env) : 0.0;
-  const std::size_t n = placed.size();
-  report("place", 0.0, 0.0, n);
+  }
 
-  // ---- rigid world: ice and end walls fixed, blocks released at rest.
+  RidgeRun& run_;
+  const RidgeDef& d_;
+  const Envelope& keel_;
+  const Envelope& sail_;
+  const double gap_, h_blk_;
+  const double zreach_;  ///< search depth, m
+  HashGrid grid_{2.0};
+  std::vector<std::int32_t> cand_;
+  std::vector<std::pair<double, double>> ivals_;
+};
+
+/// The rigid world of the settling: ice and end walls fixed, blocks released at rest.
+/// Returns the blocks' ids in `placed` order.
+std::vector<BlockId> build_settle_world(RigidWorld& world, const RidgeRun& run, const std::vector<IceBox>& ice,
+                                        const std::vector<Placed>& placed) {
+  const RidgeDef& d = run.d;
+  double zmin = 0.0, zmax = 0.0;
+  for (const Placed& p : placed) {
+    zmin = std::min(zmin, p.x.z() - p.aabb.z());
+    zmax = std::max(zmax, p.x.z() + p.aabb.z());
+  }
+  for (const IceBox& b : ice) {
+    BlockDef bd;
+    bd.half_extents = b.half_extents;
+    bd.position = b.position;
+    bd.fixed = true;
+    world.add_block(bd);
+  }
+  if (d.end_walls) {
+    for (int s = 0; s < 2; ++s) {
+      BlockDef bd;
+      bd.half_extents = Vec3(run.ice_half + 5.0, 1.0, 0.5 * (zmax - zmin) + 5.0);
+      bd.position = Vec3(0.0, s == 0 ? -1.0 : d.length + 1.0, 0.5 * (zmax + zmin));
+      bd.fixed = true;
+      world.add_block(bd);
+    }
+  }
+  std::vector<BlockId> ids;
+  ids.reserve(placed.size());
+  for (const Placed& p : placed) {
+    BlockDef bd;
+    bd.half_extents = p.h;
+    bd.position = p.x;
+    bd.orientation = p.q;
+    bd.density = d.ice_density;
+    ids.push_back(world.add_block(bd));
+  }
+  return ids;
+}
+
+RigidWorldDef settle_world_def(const RidgeDef& d) {
   RigidWorldDef wd;
   wd.dt = d.settle.dt;
   wd.solver_iterations = d.settle.solver_iterations;
@@ -653,153 +728,158 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
   wd.sleep_linear_velocity = 0.02;
   wd.sleep_angular_velocity = 0.02;
   wd.freeze_bond_strength = 0.0;
-  RigidWorld world(wd);
-  double zmin = 0.0, zmax = 0.0;
-  for (const Placed& p : placed) {
-    zmin = std::min(zmin, p.x.z() - p.aabb.z());
-    zmax = std::max(zmax, p.x.z() + p.aabb.z());
-  }
-  for (const IceBox& b : res.ice) {
-    BlockDef bd;
-    bd.half_extents = b.half_extents;
-    bd.position = b.position;
-    bd.fixed = true;
-    world.add_block(bd);
-  }
-  if (d.end_walls) {
-    for (int s = 0; s < 2; ++s) {
-      BlockDef bd;
-      bd.half_extents = Vec3(ice_half + 5.0, 1.0, 0.5 * (zmax - zmin) + 5.0);
-      bd.position = Vec3(0.0, s == 0 ? -1.0 : d.length + 1.0, 0.5 * (zmax + zmin));
-      bd.fixed = true;
-      world.add_block(bd);
+  return wd;
+}
+
+// ---- settle, in two phases (docs/ridge.md, Method 4). Compaction: the keel blocks'
+// friction lowered to compaction_friction so the rising blocks slide into the voids of
+// the pile (a numerical stand-in for the reworking a real keel gets while the ridge is
+// pushed together; it is not the friction of the final state); sail blocks keep theirs.
+// Settle: the physical friction back, more solver iterations, and a velocity-
+// proportional damping (rate settle.damping, implicit) against the residual creep and
+// solver jitter of a deep pile. Each phase ends when the mean kinetic energy per block
+// stays below the threshold for 1 s (after min_time in that phase).
+class Settling {
+ public:
+  Settling(const RidgeRun& run, RigidWorld& world, const std::vector<BlockId>& ids, const std::vector<Placed>& placed)
+      : run_(run), d_(run.d), world_(world), ids_(ids), placed_(placed), n_(placed.size()),
+        check_every_(std::max(1, static_cast<int>(std::lround(0.25 / run.d.settle.dt)))),
+        ring_(static_cast<int>(std::ceil(1.0 / (check_every_ * run.d.settle.dt) - 1e-9)) + 1), snaps_(ring_) {}
+
+  /// Runs compaction and settling; fills the settle figures of `st`. Returns the last mean
+  /// kinetic energy per block, J.
+  double run(RidgeStats& st) {
+    const double vcap = d_.settle.speed_cap_factor * d_.block_thickness / d_.settle.dt;
+    double below = 0.0, ke = 0.0;
+    bool settled = false, compacting = d_.settle.compaction_time > 0.0;
+    std::uint64_t steps = 0;
+    if (compacting) {
+      set_keel_friction(d_.settle.compaction_friction);
+      world_.set_solver_iterations(d_.settle.compaction_solver_iterations);
     }
-  }
-  std::vector<BlockId> ids;
-  ids.reserve(n);
-  for (const Placed& p : placed) {
-    BlockDef bd;
-    bd.half_extents = p.h;
-    bd.position = p.x;
-    bd.orientation = p.q;
-    bd.density = d.ice_density;
-    ids.push_back(world.add_block(bd));
+    double phase_start = 0.0;
+    if (n_ > 0) snapshot();
+    while (n_ > 0) {
+      world_.substep();
+      ++steps;
+      cap_and_damp(vcap, compacting ? 1.0 : 1.0 / (1.0 + d_.settle.damping * d_.settle.dt));
+      if (steps % check_every_ != 0) continue;
+      const double t = world_.time();
+      ke = world_.kinetic_energy() / static_cast<double>(n_);
+      run_.report(compacting ? "compact" : "settle", t, ke, n_);
+      snapshot();
+      bool phase_done = false;
+      if (t - phase_start >= d_.settle.min_time && ke < d_.settle.kinetic_energy_per_block) {
+        below += check_every_ * d_.settle.dt;
+        phase_done = below >= 1.0 - 1e-9;
+      } else {
+        below = 0.0;
+      }
+      if (compacting && (phase_done || t >= d_.settle.compaction_time)) {
+        compacting = false;
+        st.compaction_time = t;
+        set_keel_friction(d_.settle.friction);
+        world_.set_solver_iterations(d_.settle.solver_iterations);
+        phase_start = t;
+        below = 0.0;
+        continue;
+      }
+      if (phase_done) {
+        settled = true;
+        break;
+      }
+      if (t >= d_.settle.max_time) break;
+    }
+    final_displacement(st);
+    st.settled = settled || n_ == 0;
+    st.settle_time = world_.time();
+    st.settle_steps = steps;
+    st.final_kinetic_energy_per_block = ke;
+    return ke;
   }
 
-  // ---- settle, in two phases (docs/ridge.md, Method 4). Compaction: the keel blocks'
-  // friction lowered to compaction_friction so the rising blocks slide into the voids of
-  // the pile (a numerical stand-in for the reworking a real keel gets while the ridge is
-  // pushed together; it is not the friction of the final state); sail blocks keep theirs.
-  // Settle: the physical friction back, more solver iterations, and a velocity-
-  // proportional damping (rate settle.damping, implicit) against the residual creep and
-  // solver jitter of a deep pile. Each phase ends when the mean kinetic energy per block
-  // stays below the threshold for 1 s (after min_time in that phase).
-  const double vcap = d.settle.speed_cap_factor * h_blk / d.settle.dt;
-  const int check_every = std::max(1, static_cast<int>(std::lround(0.25 / d.settle.dt)));
-  double below = 0.0, ke = 0.0;
-  bool settled = false, compacting = d.settle.compaction_time > 0.0;
-  std::uint64_t steps = 0;
-  // Only keel blocks: keel-keel and keel-ice contacts lose their friction (the combined
-  // coefficient is a product), sail blocks keep theirs on the ice and on each other.
-  auto set_friction_all = [&](double mu) {
-    for (std::size_t i = 0; i < n; ++i)
-      if (placed[i].part == 0) world.set_friction(ids[i], mu);
-  };
-  if (compacting) {
-    set_friction_all(d.settle.compaction_friction);
-    world.set_solver_iterations(d.settle.compaction_solver_iterations);
+ private:
+  /// Only keel blocks: keel-keel and keel-ice contacts lose their friction (the combined
+  /// coefficient is a product), sail blocks keep theirs on the ice and on each other.
+  void set_keel_friction(double mu) {
+    for (std::size_t i = 0; i < n_; ++i)
+      if (placed_[i].part == 0) world_.set_friction(ids_[i], mu);
   }
-  double phase_start = 0.0;
-  // Positions at the last checks (a ring over >= 1 s): the displacement over the final
-  // second is reported next to the kinetic energy, as a direct measure of rest.
-  const int ring = static_cast<int>(std::ceil(1.0 / (check_every * d.settle.dt) - 1e-9)) + 1;
-  std::vector<std::vector<Vec3>> snaps(ring);
-  std::uint64_t nsnap = 0;
-  auto snapshot = [&]() {
-    std::vector<Vec3>& v = snaps[nsnap++ % ring];
-    v.resize(n);
-    for (std::size_t i = 0; i < n; ++i) v[i] = world.position(ids[i]);
-  };
-  if (n > 0) snapshot();
-  while (n > 0) {
-    world.substep();
-    ++steps;
-    const double damp = compacting ? 1.0 : 1.0 / (1.0 + d.settle.damping * d.settle.dt);
-    for (std::size_t i = 0; i < n; ++i) {
-      Vec3 v = world.velocity(ids[i]);
-      Vec3 w = world.angular_velocity(ids[i]);
-      const double sv = v.norm(), sw = w.norm() * placed[i].h.maxCoeff();
+  /// Speed cap (translation and rim speed of the rotation) and the settling damping.
+  void cap_and_damp(double vcap, double damp) {
+    for (std::size_t i = 0; i < n_; ++i) {
+      Vec3 v = world_.velocity(ids_[i]);
+      Vec3 w = world_.angular_velocity(ids_[i]);
+      const double sv = v.norm(), sw = w.norm() * placed_[i].h.maxCoeff();
       if (sv > vcap) v *= vcap / sv;
       if (sw > vcap) w *= vcap / sw;
-      if (sv > vcap || sw > vcap || damp != 1.0) world.set_velocity(ids[i], v * damp, w * damp);
+      if (sv > vcap || sw > vcap || damp != 1.0) world_.set_velocity(ids_[i], v * damp, w * damp);
     }
-    if (steps % check_every != 0) continue;
-    const double t = world.time();
-    ke = world.kinetic_energy() / static_cast<double>(n);
-    report(compacting ? "compact" : "settle", t, ke, n);
-    snapshot();
-    bool phase_done = false;
-    if (t - phase_start >= d.settle.min_time && ke < d.settle.kinetic_energy_per_block) {
-      below += check_every * d.settle.dt;
-      phase_done = below >= 1.0 - 1e-9;
-    } else {
-      below = 0.0;
-    }
-    if (compacting && (phase_done || t >= d.settle.compaction_time)) {
-      compacting = false;
-      res.stats.compaction_time = t;
-      set_friction_all(d.settle.friction);
-      world.set_solver_iterations(d.settle.solver_iterations);
-      phase_start = t;
-      below = 0.0;
-      continue;
-    }
-    if (phase_done) {
-      settled = true;
-      break;
-    }
-    if (t >= d.settle.max_time) break;
   }
-  if (nsnap >= 2) {  // displacement since the oldest snapshot in the ring (<= 1 s ago)
-    const std::vector<Vec3>& old = snaps[nsnap >= static_cast<std::uint64_t>(ring) ? nsnap % ring : 0];
-    const std::vector<Vec3>& now = snaps[(nsnap - 1) % ring];
+  /// Positions at the last checks (a ring over >= 1 s): the displacement over the final
+  /// second is reported next to the kinetic energy, as a direct measure of rest.
+  void snapshot() {
+    std::vector<Vec3>& v = snaps_[nsnap_++ % ring_];
+    v.resize(n_);
+    for (std::size_t i = 0; i < n_; ++i) v[i] = world_.position(ids_[i]);
+  }
+  void final_displacement(RidgeStats& st) const {
+    if (nsnap_ < 2) return;  // displacement since the oldest snapshot in the ring (<= 1 s ago)
+    const std::vector<Vec3>& old = snaps_[nsnap_ >= static_cast<std::uint64_t>(ring_) ? nsnap_ % ring_ : 0];
+    const std::vector<Vec3>& now = snaps_[(nsnap_ - 1) % ring_];
     double sum = 0.0;
-    for (std::size_t i = 0; i < n; ++i) {
+    for (std::size_t i = 0; i < n_; ++i) {
       const double dd = (now[i] - old[i]).norm();
       sum += dd;
-      res.stats.final_max_displacement = std::max(res.stats.final_max_displacement, dd);
+      st.final_max_displacement = std::max(st.final_max_displacement, dd);
     }
-    res.stats.final_mean_displacement = sum / static_cast<double>(n);
-  }
-  res.stats.settled = settled || n == 0;
-  res.stats.settle_time = world.time();
-  res.stats.settle_steps = steps;
-  res.stats.final_kinetic_energy_per_block = ke;
-  // Where the final kinetic energy sits. A Bullet body asleep has its velocities set to
-  // exactly zero (and counts 0 in ke); an awake body never has exactly zero velocity.
-  if (n > 0) {
-    std::vector<double> eb(n);
-    double esail = 0.0, etot = 0.0;
-    std::size_t asleep = 0;
-    for (std::size_t i = 0; i < n; ++i) {
-      const Vec3 v = world.velocity(ids[i]), w = world.angular_velocity(ids[i]);
-      if (v.isZero(0.0) && w.isZero(0.0)) ++asleep;
-      const Vec3 wl = world.orientation(ids[i]).toRotationMatrix().transpose() * w;
-      const Vec3& h = placed[i].h;
-      const double m = world.mass(ids[i]);
-      const Vec3 inertia = m / 3.0 * Vec3(h.y() * h.y() + h.z() * h.z(), h.x() * h.x() + h.z() * h.z(),
-                                          h.x() * h.x() + h.y() * h.y());
-      eb[i] = 0.5 * m * v.squaredNorm() + 0.5 * wl.dot(inertia.cwiseProduct(wl));
-      etot += eb[i];
-      if (placed[i].part != 0) esail += eb[i];
-    }
-    res.stats.final_asleep_blocks = asleep;
-    res.stats.final_kinetic_energy_per_awake_block = asleep < n ? etot / static_cast<double>(n - asleep) : 0.0;
-    res.stats.final_kinetic_energy_sail_fraction = etot > 0.0 ? esail / etot : 0.0;
-    std::nth_element(eb.begin(), eb.begin() + n / 2, eb.end());
-    res.stats.final_kinetic_energy_median = eb[n / 2];
+    st.final_mean_displacement = sum / static_cast<double>(n_);
   }
 
+  const RidgeRun& run_;
+  const RidgeDef& d_;
+  RigidWorld& world_;
+  const std::vector<BlockId>& ids_;
+  const std::vector<Placed>& placed_;
+  const std::size_t n_;
+  const int check_every_;
+  const int ring_;
+  std::vector<std::vector<Vec3>> snaps_;
+  std::uint64_t nsnap_ = 0;
+};
+
+/// Where the final kinetic energy sits. A Bullet body asleep has its velocities set to
+/// exactly zero (and counts 0 in ke); an awake body never has exactly zero velocity.
+void final_energy_stats(const RigidWorld& world, const std::vector<BlockId>& ids, const std::vector<Placed>& placed,
+                        RidgeStats& st) {
+  const std::size_t n = placed.size();
+  if (n == 0) return;
+  std::vector<double> eb(n);
+  double esail = 0.0, etot = 0.0;
+  std::size_t asleep = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const Vec3 v = world.velocity(ids[i]), w = world.angular_velocity(ids[i]);
+    if (v.isZero(0.0) && w.isZero(0.0)) ++asleep;
+    const Vec3 wl = world.orientation(ids[i]).toRotationMatrix().transpose() * w;
+    const Vec3& h = placed[i].h;
+    const double m = world.mass(ids[i]);
+    const Vec3 inertia = m / 3.0 * Vec3(h.y() * h.y() + h.z() * h.z(), h.x() * h.x() + h.z() * h.z(),
+                                        h.x() * h.x() + h.y() * h.y());
+    eb[i] = 0.5 * m * v.squaredNorm() + 0.5 * wl.dot(inertia.cwiseProduct(wl));
+    etot += eb[i];
+    if (placed[i].part != 0) esail += eb[i];
+  }
+  st.final_asleep_blocks = asleep;
+  st.final_kinetic_energy_per_awake_block = asleep < n ? etot / static_cast<double>(n - asleep) : 0.0;
+  st.final_kinetic_energy_sail_fraction = etot > 0.0 ? esail / etot : 0.0;
+  std::nth_element(eb.begin(), eb.begin() + n / 2, eb.end());
+  st.final_kinetic_energy_median = eb[n / 2];
+}
+
+/// The settled blocks into the result (and back into `placed`, for the joints and the report).
+void collect_blocks(const RigidWorld& world, const std::vector<BlockId>& ids, std::vector<Placed>& placed,
+                    RidgeResult& res) {
+  const std::size_t n = placed.size();
   res.blocks.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     RidgeBlock& b = res.blocks[i];
@@ -815,13 +895,13 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
     if (b.part == 0) ++res.stats.keel_blocks;
     else ++res.stats.sail_blocks;
   }
+}
 
-  // ---- freeze joints and final overlap.
-  report("joints", res.stats.settle_time, ke, n);
-  HashGrid fgrid(2.0);
-  for (std::size_t i = 0; i < n; ++i)
-    fgrid.insert(static_cast<std::int32_t>(i), placed[i].x - placed[i].aabb - Vec3::Constant(gap),
-                 placed[i].x + placed[i].aabb + Vec3::Constant(gap));
+// ---- freeze joints and final overlap: every pair of boxes (block-block, block-ice) closer
+// than the gap gets a joint of the area of their gap-inflated intersection over its depth.
+void find_joints(const RidgeDef& d, const std::vector<Placed>& placed, const HashGrid& fgrid_in, RidgeResult& res) {
+  HashGrid& fgrid = const_cast<HashGrid&>(fgrid_in);  // query() only stamps its scratch
+  const double gap = d.joints.gap;
   const Vec3 hg = Vec3::Constant(0.5 * gap);
   auto try_joint = [&](std::int32_t a, std::int32_t b, const Vec3& ha, const Vec3& xa, const Mat3& A,
                        const Vec3& hb, const Vec3& xb, const Mat3& B) {
@@ -842,7 +922,8 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
     j.area = area;
     res.joints.push_back(j);
   };
-  for (std::size_t i = 0; i < n; ++i) {
+  std::vector<std::int32_t> cand;
+  for (std::size_t i = 0; i < placed.size(); ++i) {
     const Placed& p = placed[i];
     fgrid.query(p.x - p.aabb - Vec3::Constant(gap), p.x + p.aabb + Vec3::Constant(gap), cand);
     for (std::int32_t j : cand) {
@@ -863,13 +944,23 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
     }
   }
   res.stats.joints = res.joints.size();
+}
 
-  // ---- achieved profile: 95th percentile of block bottoms (keel) / tops (sail) per bin.
-  report("measure", res.stats.settle_time, ke, n);
+/// The x range and bins of the report: bin b covers [(b0 + b) pb, (b0 + b + 1) pb).
+struct ProfileBins {
+  double xlo = 0.0, xhi = 0.0, pb = 0.0;
+  std::int64_t b0 = 0;
+  std::size_t nb = 0;
+};
+
+// ---- achieved profile: 95th percentile of block bottoms (keel) / tops (sail) per bin.
+ProfileBins measure_profile(const RidgeRun& run, const std::vector<Placed>& placed, RidgeResult& res) {
+  const RidgeDef& d = run.d;
+  ProfileBins pbins;
   double xlo = 0.0, xhi = 0.0;
   for (const Placed& p : placed) xlo = std::min(xlo, p.x.x()), xhi = std::max(xhi, p.x.x());
-  xlo = std::min(xlo, -std::max(kx, sx));
-  xhi = std::max(xhi, std::max(kx, sx));
+  xlo = std::min(xlo, -std::max(run.kx, run.sx));
+  xhi = std::max(xhi, std::max(run.kx, run.sx));
   if (!d.keel_profile.empty()) {
     xlo = std::min(xlo, d.keel_profile.front().position);
     xhi = std::max(xhi, d.keel_profile.back().position);
@@ -905,16 +996,26 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
     res.stats.sail_height_achieved = std::max(res.stats.sail_height_achieved, pr.sail_height.back());
   }
   res.stats.keel_profile_rms_error = ne ? std::sqrt(se / static_cast<double>(ne)) : 0.0;
+  pbins.xlo = xlo;
+  pbins.xhi = xhi;
+  pbins.pb = pb;
+  pbins.b0 = b0;
+  pbins.nb = nb;
+  return pbins;
+}
 
-  // ---- porosity: point count inside the achieved keel envelope.
-  const double g = d.porosity_grid;
+// ---- porosity: point count inside the achieved keel envelope.
+void measure_porosity(const RidgeDef& d, const std::vector<Placed>& placed, const HashGrid& fgrid,
+                      const ProfileBins& bins, RidgeResult& res) {
+  const double g = d.porosity_grid, pb = bins.pb;
+  const RidgeProfile& pr = res.profile;
   std::uint64_t pts_all = 0, in_all = 0, pts_core = 0, in_core = 0;
-  const std::int64_t nx = static_cast<std::int64_t>(std::floor((xhi - xlo) / g));
+  const std::int64_t nx = static_cast<std::int64_t>(std::floor((bins.xhi - bins.xlo) / g));
   const std::int64_t ny = static_cast<std::int64_t>(std::floor(d.length / g));
   for (std::int64_t ix = 0; ix < nx; ++ix) {
-    const double x = xlo + (static_cast<double>(ix) + 0.5) * g;
-    const std::size_t bi = static_cast<std::size_t>(static_cast<std::int64_t>(std::floor(x / pb)) - b0);
-    if (bi >= nb) continue;
+    const double x = bins.xlo + (static_cast<double>(ix) + 0.5) * g;
+    const std::size_t bi = static_cast<std::size_t>(static_cast<std::int64_t>(std::floor(x / pb)) - bins.b0);
+    if (bi >= bins.nb) continue;
     const double zb = -pr.keel_depth[bi], zt = -ice_draft(d, x);
     if (!(zb < zt)) continue;
     // Core: under the consolidated layer, upper 80 % of the local keel thickness (away
@@ -944,6 +1045,47 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
   }
   res.stats.keel_porosity = pts_all ? 1.0 - static_cast<double>(in_all) / static_cast<double>(pts_all) : 0.0;
   res.stats.core_porosity = pts_core ? 1.0 - static_cast<double>(in_core) / static_cast<double>(pts_core) : 0.0;
+}
+
+}  // namespace
+
+RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress) {
+  validate(def, "ridge");
+  const auto wall0 = std::chrono::steady_clock::now();
+  RidgeResult res;
+  res.def = def;
+  const RidgeDef& d = def;
+  RidgeRun run(d, progress);
+  add_ice_sheet(run, res.ice);
+
+  // Placement, into the target envelopes.
+  const Envelope keel(d, true, run.kx);
+  const Envelope sail = d.sail_height > 0.0 ? Envelope(d, false, run.sx) : Envelope();
+  res.stats.keel_target_volume = keel.volume;
+  Placement placement(run, keel, sail);
+  res.stats.keel_block_volume = placement.fill(true, (1.0 - d.fill_porosity) * keel.volume);
+  res.stats.sail_block_volume = sail.volume > 0.0 ? placement.fill(false, (1.0 - d.fill_porosity) * sail.volume) : 0.0;
+  std::vector<Placed> placed = std::move(placement.placed);
+  const std::size_t n = placed.size();
+  run.report("place", 0.0, 0.0, n);
+
+  // Compaction and settling in the rigid world.
+  RigidWorld world(settle_world_def(d));
+  const std::vector<BlockId> ids = build_settle_world(world, run, res.ice, placed);
+  const double ke = Settling(run, world, ids, placed).run(res.stats);
+  final_energy_stats(world, ids, placed, res.stats);
+  collect_blocks(world, ids, placed, res);
+
+  // Joints, then the report.
+  run.report("joints", res.stats.settle_time, ke, n);
+  HashGrid fgrid(2.0);
+  for (std::size_t i = 0; i < n; ++i)
+    fgrid.insert(static_cast<std::int32_t>(i), placed[i].x - placed[i].aabb - Vec3::Constant(d.joints.gap),
+                 placed[i].x + placed[i].aabb + Vec3::Constant(d.joints.gap));
+  find_joints(d, placed, fgrid, res);
+  run.report("measure", res.stats.settle_time, ke, n);
+  const ProfileBins bins = measure_profile(run, placed, res);
+  measure_porosity(d, placed, fgrid, bins, res);
   res.stats.wall_time =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   return res;

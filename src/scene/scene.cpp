@@ -1,7 +1,8 @@
 #include "scene/scene.h"
 
-#include "bonded/hcp_lattice.h"
 #include "common/error.h"
+#include "common/hcp_geometry.h"
+#include "common/ice_formulas.h"
 #include "json/reader.h"
 
 #include <algorithm>
@@ -141,8 +142,8 @@ void read_material(const JsonObject& root, Scene& s) {
   m.restitution = o.number("restitution", m.restitution, {0.0, 1.0, true, false}, "",
                            "coefficient of restitution of contacts, e.g. 0.3");
   m.friction = o.number("friction", m.friction, Range::non_negative(), "", "Coulomb coefficient, e.g. 0.3");
-  const std::string cm = o.choice("contact_model", "linear", {"linear", "hertz"});
-  m.contact_model = cm == "hertz" ? bonded::ContactModel::HertzMindlin : bonded::ContactModel::LinearSpringDashpot;
+  const std::string cm = o.choice("contact_model", contact_model_name(ContactModel::LinearSpringDashpot), contact_model_names());
+  m.contact_model = contact_model_from_name(cm);
   if (o.has("stiffness"))
     m.stiffness = o.number("stiffness", 0.0, Range::positive(), "N/m", "omit it for the paper's Eq. 1, pi E D / 12");
 }
@@ -198,7 +199,7 @@ void read_consolidated_layer(const JsonObject& ice_obj, IceDef& ice) {
 void check_ice_size(Scene& s) {
   const auto& ice = s.ice;
   const double D = s.material.particle_diameter;
-  const double c = bonded::hcp_layer_spacing(D);
+  const double c = hcp_layer_spacing(D);
   if (std::lround(ice.thickness / c) < 1)
     throw InputError("/ice/thickness", "thickness " + json_fmt(ice.thickness) + " m gives no particle layer with D = " +
                                            json_fmt(D) + " m (layer spacing " + json_fmt(c) + " m); use thickness >= " +
@@ -215,7 +216,7 @@ void check_ice_size(Scene& s) {
 void check_particle_count(const Scene& s) {
   const auto& ice = s.ice;
   const double D = s.material.particle_diameter;
-  const double c = bonded::hcp_layer_spacing(D);
+  const double c = hcp_layer_spacing(D);
   const double per_layer = ice.length * ice.width / (D * D * std::sqrt(3.0) / 2.0);
   const double layers =
       std::round(std::max(ice.thickness, ice.has_consolidated_layer ? ice.consolidated_layer.thickness : 0.0) / c);
@@ -476,7 +477,7 @@ const std::vector<std::string>& allowed_keys(const std::string& pointer) {
 }
 
 double MaterialDef::effective_stiffness() const {
-  return stiffness > 0.0 ? stiffness : kPi * youngs_modulus * particle_diameter / 12.0;
+  return stiffness > 0.0 ? stiffness : eq1_contact_stiffness(youngs_modulus, particle_diameter);
 }
 
 namespace {

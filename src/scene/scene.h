@@ -11,7 +11,7 @@
 // and defaults: docs/scene.md; JSON Schema for editors: docs/scene.schema.json.
 #pragma once
 
-#include "bonded/engine.h"  // bonded::ContactModel only (moves to src/common with the contact-law dispatch)
+#include "common/contact_model.h"
 #include "common/types.h"
 #include "json/reader.h"
 #include "mesh/pier.h"
@@ -39,7 +39,7 @@ struct MaterialDef {
   double particle_diameter = 0.5;  ///< D, m
   double restitution = 0.3;        ///< contacts
   double friction = 0.3;           ///< particle-particle Coulomb coefficient
-  bonded::ContactModel contact_model = bonded::ContactModel::LinearSpringDashpot;
+  ContactModel contact_model = ContactModel::LinearSpringDashpot;  ///< the law (common/contact_model.h)
   double stiffness = 0.0;          ///< k_n = k_t, N/m; 0 = paper Eq. 1, pi E D / 12
   /// The stiffness actually used (Eq. 1 when `stiffness` is 0).
   double effective_stiffness() const;

@@ -3,6 +3,7 @@
 
 #include "bonded/hcp_lattice.h"
 #include "common/error.h"
+#include "common/ice_formulas.h"
 #include "mesh/pier.h"
 
 #include <algorithm>
@@ -56,7 +57,7 @@ IceLayout ice_layout(const scene::Scene& s) {
   const double h = L.layers * c;
   // Floating at equilibrium (Column buoyancy): draft h rho_i / rho_w, freeboard h (1 - rho_i/rho_w).
   // Without water the sheet rests with its bottom at z = 0.
-  const double draft = s.water.enabled ? h * s.material.density / s.water.density : 0.0;
+  const double draft = s.water.enabled ? flotation_draft(h, s.material.density, s.water.density) : 0.0;
   const double level = s.water.enabled ? s.water.level : 0.0;
   L.bottom_z = level - draft;
   L.top_z = L.bottom_z + h;
@@ -126,8 +127,8 @@ Built build_engine(const scene::Scene& s, bool check_dt) {
   std::size_t below = 0;  // consolidated layers below the level ice's bottom layer
   if (s.ice.has_consolidated_layer) {
     total_layers = L.consolidated_layers;
-    const double draft_c = s.water.enabled ? total_layers * c * s.material.density / s.water.density : 0.0;
-    const double draft_l = s.water.enabled ? L.layers * c * s.material.density / s.water.density : 0.0;
+    const double draft_c = s.water.enabled ? flotation_draft(total_layers * c, s.material.density, s.water.density) : 0.0;
+    const double draft_l = s.water.enabled ? flotation_draft(L.layers * c, s.material.density, s.water.density) : 0.0;
     const long extra = std::lround((draft_c - draft_l) / c);
     below = static_cast<std::size_t>(std::clamp<long>(extra, 0, static_cast<long>(total_layers - L.layers)));
   }

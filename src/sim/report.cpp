@@ -1,6 +1,7 @@
 #include "sim/report.h"
 
 #include "common/error.h"
+#include "common/ice_formulas.h"
 #include "io/run_file_edit.h"
 #include "parallel/comm.h"
 #include "sim/build.h"
@@ -35,10 +36,6 @@ analysis::Pieces gather_pieces(const bonded::Engine& e, const par::Comm& comm) {
   std::vector<PieceBond> bonds(all_b.size() / sizeof(PieceBond));
   if (!bonds.empty()) std::memcpy(static_cast<void*>(bonds.data()), all_b.data(), all_b.size());
   return analysis::find_pieces(std::move(recs), bonds);
-}
-
-double characteristic_length(double E, double h, double rho_w, double g, double nu) {
-  return std::pow(E * h * h * h / (12.0 * rho_w * g * (1.0 - nu * nu)), 0.25);
 }
 
 }  // namespace

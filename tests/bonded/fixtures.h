@@ -3,6 +3,7 @@
 
 #include "bonded/engine.h"
 #include "bonded/hcp_lattice.h"
+#include "common/ice_formulas.h"
 #include "mesh/pier.h"
 
 namespace hs::test {
@@ -11,7 +12,7 @@ struct Ice {
   double D = 0.5;        // particle diameter, m
   double rho = 920.0;    // kg/m^3
   double E = 1e9;        // Pa
-  double kn() const { return kPi * E * D / 12.0; }  // paper Eq. 1
+  double kn() const { return eq1_contact_stiffness(E, D); }  // paper Eq. 1
   double sphere_mass() const { return rho * kPi * D * D * D / 6.0; }
   double cell_mass() const { return rho * bonded::hcp_cell_volume(D); }
   double tau0() const { return D * std::sqrt(rho / E); }

@@ -94,3 +94,36 @@ TEST(ContactLaw, ImpactFiguresPrinted) {
     EXPECT_GT(r.tc, 0.0);
   }
 }
+
+// The dispatch point (contact_law.h): the scene words name the laws, each model reaches its own
+// law with the engine's parameters, and the time-step springs are the laws' (Hertz: S_n = 2 E* a,
+// S_t = 8 G* a at a = sqrt(R* delta), R* = r/2, delta = reference overlap x r).
+TEST(ContactLaw, DispatchReachesTheNamedLaw) {
+  EXPECT_EQ(contact_model_from_name("linear"), ContactModel::LinearSpringDashpot);
+  EXPECT_EQ(contact_model_from_name("hertz"), ContactModel::HertzMindlin);
+  EXPECT_EQ(contact_model_name(ContactModel::HertzMindlin), "hertz");
+  EXPECT_THROW(contact_model_from_name("herz"), std::invalid_argument);
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  d.hertz = HertzContactParams::from_material(ice.E, 0.3, 0.5, 0.2);
+  const double r = 0.5 * ice.D;
+  for (ContactModel m : {ContactModel::LinearSpringDashpot, ContactModel::HertzMindlin}) {
+    d.contact_model = m;
+    const ContactModel reached = with_contact_law(d, [](const auto& law) { return law.kModel; });
+    EXPECT_EQ(reached, m);
+  }
+  d.contact_model = ContactModel::LinearSpringDashpot;
+  const ContactStiffness lin = with_contact_law(d, [&](const auto& law) { return law.time_step_stiffness(r); });
+  EXPECT_EQ(lin.kn, d.contact.kn);
+  EXPECT_EQ(lin.kt, d.contact.kt);
+  d.contact_model = ContactModel::HertzMindlin;
+  const ContactStiffness hz = with_contact_law(d, [&](const auto& law) { return law.time_step_stiffness(r); });
+  const double a = std::sqrt(0.5 * r * d.hertz_reference_overlap * r);
+  EXPECT_DOUBLE_EQ(hz.kn, 2.0 * d.hertz.e_star * a);
+  EXPECT_DOUBLE_EQ(hz.kt, 8.0 * d.hertz.g_star * a);
+  EXPECT_DOUBLE_EQ(hz.zeta, -std::sqrt(5.0 / 6.0) * d.hertz.beta);
+  // A wall's friction replaces the particles' and nothing else.
+  const HertzLaw w = HertzLaw::from_def(d).with_friction(0.7);
+  EXPECT_EQ(w.p.mu, 0.7);
+  EXPECT_EQ(w.p.e_star, d.hertz.e_star);
+}

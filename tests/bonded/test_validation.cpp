@@ -205,7 +205,7 @@ TEST(Validation, FloatingStripEndLoadMatchesHetenyi) {
   const int nl = 4;  // h = 4 c = 1.63 m, h/D = 3.27
   const double h = nl * c;
   const double Lx = 36.0;
-  const double draft = h * ice.rho / kRhoW;
+  const double draft = flotation_draft(h, ice.rho, kRhoW);
   EngineDef d = lattice_def(ice, INFINITY, INFINITY, 0.3);
   d.gravity = Vec3(0, 0, -kG);
   d.water.enabled = true;
@@ -399,8 +399,8 @@ TEST(Validation, FloatingSlabFreeboardAndHeavePeriod) {
   ice.E = 2e7;  // reduced E (dt 7x larger); the slab still moves as a rigid body
   const int nl = 4;
   const double c = hcp_layer_spacing(ice.D), h = nl * c;
-  const double draft = h * ice.rho / kRhoW;
-  const double freeboard_th = h * (1.0 - ice.rho / kRhoW);
+  const double draft = flotation_draft(h, ice.rho, kRhoW);
+  const double freeboard_th = flotation_freeboard(h, ice.rho, kRhoW);
   const double T_th = 2.0 * kPi * std::sqrt(ice.rho * h / (kRhoW * kG));
 
   // (a) Freeboard: released 0.1 m too high, heave damped by linear drag, settled.

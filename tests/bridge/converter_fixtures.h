@@ -9,6 +9,7 @@
 #include "bonded/engine.h"
 #include "bonded/hcp_lattice.h"
 #include "bridge/converter.h"
+#include "common/ice_formulas.h"
 
 #include <algorithm>
 #include <cmath>
@@ -21,7 +22,7 @@ inline constexpr double kRhoI = 920.0, kRhoW = 1025.0, kG = 9.81;
 struct Material {
   double D = 0.25;
   double E = 1e7;  // modest E: dt = 0.1 D sqrt(rho/E) ~ 7.6e-5 s, runs in seconds
-  double kn() const { return kPi * E * D / 12.0; }
+  double kn() const { return eq1_contact_stiffness(E, D); }
   double cell_mass() const { return kRhoI * bonded::hcp_cell_volume(D); }
 };
 
@@ -177,7 +178,7 @@ inline bonded::EngineDef floating_def(const Material& mat) {
 /// its A and B layers hold 168 and 156 sites (D = 0.25 m); the converter trims them to equal
 /// counts, without which the draft moved by 5 % of the freeboard.
 inline bridge::BlockState floating_block(const Material& mat) {
-  const double h = floating_thickness(mat), draft = h * kRhoI / kRhoW;
+  const double h = floating_thickness(mat), draft = flotation_draft(h, kRhoI, kRhoW);
   bridge::BlockState b;
   b.half_extents = Vec3(1.5, 1.5, 0.5 * h);
   b.pose.position = Vec3(0.0, 0.0, 0.5 * h - draft);
@@ -199,7 +200,7 @@ struct FloatingRun {
 inline FloatingRun float_block(bonded::Engine& e, const Material& mat) {
   FloatingRun out;
   out.h = floating_thickness(mat);
-  out.freeboard = out.h - out.h * kRhoI / kRhoW;
+  out.freeboard = out.h - flotation_draft(out.h, kRhoI, kRhoW);
   out.r = bridge::convert_block(e, floating_block(mat), ice_material(mat));
   out.first_gid = out.r.first_gid;
   out.end_gid = out.r.first_gid + out.r.particles_created;

@@ -8,6 +8,7 @@
 #include "bonded/engine.h"
 #include "bonded/hcp_lattice.h"
 #include "bridge/hybrid.h"
+#include "common/ice_formulas.h"
 #include "mesh/pier.h"
 
 #include <gtest/gtest.h>
@@ -21,7 +22,7 @@ namespace hs::test::hybrid {
 inline constexpr double kRhoI = 920.0, kD = 0.2, kE = 1e8, kG = 9.81;
 
 /// dt of paper Eq. 2 (alpha 0.1) for this ice.
-inline double ice_dt() { return 0.1 * kD * std::sqrt(kRhoI / kE); }
+inline double ice_dt() { return eq2_time_step(0.1, kD, kRhoI, kE); }
 
 /// Particle ice as in the scenes, E = 1e8 Pa (contact overlaps under a block's weight stay small),
 /// gravity on, bond damping 0.3 (lattice and freeze bonds alike). `restitution`: particle contacts
@@ -31,7 +32,7 @@ inline bonded::EngineDef ice_def(double restitution) {
   d.gravity = Vec3(0, 0, -kG);
   d.youngs_modulus = kE;
   d.density = kRhoI;
-  d.contact.kn = d.contact.kt = kPi * kE * kD / 12.0;
+  d.contact.kn = d.contact.kt = eq1_contact_stiffness(kE, kD);
   d.contact.zeta_n = d.contact.zeta_t = bonded::damping_ratio_from_restitution(restitution);
   d.contact.mu = 0.3;
   const double m = kRhoI * bonded::hcp_cell_volume(kD), I = 0.4 * m * 0.25 * kD * kD;
@@ -150,7 +151,7 @@ inline constexpr std::uint64_t kCrackBonds = 6;
 inline bonded::EngineDef bend_ice_def() {
   bonded::EngineDef d = ice_def(0.05);
   d.gravity = Vec3::Zero();
-  d.contact.kn = d.contact.kt = kPi * kE * kDb / 12.0;
+  d.contact.kn = d.contact.kt = eq1_contact_stiffness(kE, kDb);
   const double m = kRhoI * bonded::hcp_cell_volume(kDb), I = 0.4 * m * 0.25 * kDb * kDb;
   d.bond[0] = bonded::ParallelBondParams::from_stiffness(d.contact.kn, d.contact.kn, 0.5 * kDb, kSigmaC, kTauC, 0.3,
                                                          0.5 * m, 0.5 * I);
@@ -244,7 +245,7 @@ inline BendResult bend(bridge::ConversionMode mode, double flexural_strength, do
   const int wall = e.add_mesh_wall(md);
   // 0.09 D sqrt(rho/E) = 2.73e-5 s, below the engine's critical step with the beam (2.87e-5 s),
   // which 0.1 D sqrt(rho/E) (ice_dt(), the set-ups above) exceeds; the same step in every run.
-  e.set_dt(0.09 * kDb * std::sqrt(kRhoI / kE));
+  e.set_dt(eq2_time_step(0.09, kDb, kRhoI, kE));
   bridge::HybridDef d = dry_hybrid(mode);
   d.world.gravity = Vec3::Zero();
   d.ice.diameter = kDb;

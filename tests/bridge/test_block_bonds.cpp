@@ -3,6 +3,7 @@
 // rigid step, patch creation, and the conversion hand-over (bond counts conserved).
 #include "bridge/block_bonds.h"
 #include "bridge/converter.h"
+#include "common/ice_formulas.h"
 
 #include <gtest/gtest.h>
 
@@ -19,7 +20,7 @@ using hs::bridge::BlockParticleBonds;
 namespace {
 
 constexpr double kRhoI = 920.0, kD = 0.25, kR = 0.5 * kD, kE = 1e7;
-const double kK = kPi * kE * kD / 12.0;  // paper Eq. 1
+const double kK = eq1_contact_stiffness(kE, kD);  // paper Eq. 1
 const double kMass = kRhoI * hcp_cell_volume(kD);
 const double kInertia = 0.4 * kMass * kR * kR;
 

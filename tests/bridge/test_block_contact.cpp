@@ -3,6 +3,7 @@
 // invariance, Coulomb sliding, history semantics, and the broad phase against brute force.
 #include "bridge/block_contact.h"
 #include "common/error.h"
+#include "common/ice_formulas.h"
 
 #include <gtest/gtest.h>
 
@@ -25,7 +26,7 @@ struct Ice {
   double rho = 920.0;  // kg/m^3
   double E = 1e9;      // Pa
   double r() const { return 0.5 * D; }
-  double kn() const { return kPi * E * D / 12.0; }  // paper Eq. 1
+  double kn() const { return eq1_contact_stiffness(E, D); }  // paper Eq. 1
   double sphere_mass() const { return rho * kPi * D * D * D / 6.0; }
   double tau0() const { return D * std::sqrt(rho / E); }
 };

@@ -2,6 +2,8 @@
 // forms (three- and four-point bending, a free block under one end force), invariance under
 // rotation and mirroring, freeze-bond utilisation, the conversion rule and the region.
 #include "bridge/block_stress.h"
+#include "bridge/conversion_criteria.h"
+#include "bridge/criterion_freeze_bond.h"
 #include "common/error.h"
 
 #include <gtest/gtest.h>
@@ -332,6 +334,56 @@ TEST(BlockStress, ConversionRuleAndSafetyFactor) {
   EXPECT_EQ(block_stress(f, b).governing, StressMode::FreezeBond);
   EXPECT_THROW(converts(1.0, 0.0), InputError);
   EXPECT_THROW(converts(1.0, NAN), InputError);
+}
+
+// ---- the conversion criteria (conversion_criteria.h) ----
+
+// The criteria list gives the same utilisations as the estimates called by hand, the larger
+// governs (ties: the earlier criterion), and the block-particle bonds count in the freeze-bond
+// criterion only when they exceed the joints.
+TEST(BlockStress, CriteriaListMatchesTheEstimates) {
+  const auto criteria = conversion_criteria();
+  ASSERT_EQ(criteria.size(), 2u);
+  EXPECT_STREQ(criteria[kFreezeBondCriterion].name, "freeze_bond");
+  EXPECT_STREQ(criteria[kFlexureCriterion].name, "flexure");
+  BlockLoads b;
+  b.box = slab();
+  b.loads = random_loads(b.box, 6, 7);
+  ConversionStrengths s;
+  s.freeze = {60e3, 40e3};
+  s.flexural_strength = kSigmaF;
+  const double A = 0.2;
+  b.joints = {{0.3 * A * s.freeze.tensile, 0.1 * A * s.freeze.shear, A}};  // u_f = 0.3
+  const double u_b = flexure_estimate(b.box, b.loads, kSigmaF).utilisation;
+  ASSERT_GT(u_b, 0.0);
+  EXPECT_EQ(criteria[kFreezeBondCriterion].utilisation(b, s), freeze_bond_estimate(b.joints, s.freeze).utilisation);
+  EXPECT_EQ(criteria[kFlexureCriterion].utilisation(b, s), u_b);
+  // Flexure governs when larger; the joint when its load is raised above it.
+  ConversionDecision d = evaluate_criteria(b, s);
+  const double u_f = freeze_bond_estimate(b.joints, s.freeze).utilisation;
+  EXPECT_EQ(d.utilisation, std::max(u_f, u_b));
+  EXPECT_EQ(d.governing, u_b > u_f ? static_cast<int>(kFlexureCriterion) : static_cast<int>(kFreezeBondCriterion));
+  b.joints[0].tension = 2.0 * u_b * A * s.freeze.tensile;  // u_f = 2 u_b
+  d = evaluate_criteria(b, s);
+  EXPECT_EQ(d.governing, static_cast<int>(kFreezeBondCriterion));
+  EXPECT_EQ(d.utilisation, 2.0 * u_b);
+  // A block-particle bond above the joints governs the freeze-bond criterion; below, it does not.
+  b.bond_u_shear = 3.0 * u_b;
+  EXPECT_EQ(freeze_bond_utilisation(b, s), 3.0 * u_b);
+  b.bond_u_shear = 0.5 * u_b;
+  EXPECT_EQ(freeze_bond_utilisation(b, s), 2.0 * u_b);
+  // A tie goes to the earlier criterion; nothing loaded: no criterion governs.
+  b.joints.clear();
+  b.bond_u_shear = 0.0;
+  b.bond_u_tension = u_b;  // u_f = u_b exactly
+  d = evaluate_criteria(b, s);
+  EXPECT_EQ(d.governing, static_cast<int>(kFreezeBondCriterion));
+  EXPECT_EQ(d.utilisation, u_b);
+  BlockLoads none;
+  none.box = slab();
+  d = evaluate_criteria(none, s);
+  EXPECT_EQ(d.governing, -1);
+  EXPECT_EQ(d.utilisation, 0.0);
 }
 
 // ---- conversion region ----

@@ -3,6 +3,7 @@
 // (region, freeze-bond estimate, safety factor).
 #include "bridge/hybrid.h"
 #include "common/error.h"
+#include "common/ice_formulas.h"
 #include "mesh/pier.h"
 
 #include <gtest/gtest.h>
@@ -26,7 +27,7 @@ EngineDef engine_def(bool gravity) {
   d.gravity = gravity ? Vec3(0, 0, -9.81) : Vec3::Zero();
   d.youngs_modulus = kE;
   d.density = kRhoI;
-  d.contact.kn = d.contact.kt = kPi * kE * kD / 12.0;
+  d.contact.kn = d.contact.kt = eq1_contact_stiffness(kE, kD);
   const double m = kRhoI * hcp_cell_volume(kD), I = 0.4 * m * 0.25 * kD * kD;
   d.bond[0] = ParallelBondParams::from_stiffness(d.contact.kn, d.contact.kn, 0.5 * kD, INFINITY, INFINITY, 0.0,
                                                  0.5 * m, 0.5 * I);

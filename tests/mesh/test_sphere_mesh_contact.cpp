@@ -3,6 +3,7 @@
 #include "mesh_fixtures.h"
 
 #include "bonded/contact_linear.h"
+#include "common/ice_formulas.h"
 #include "mesh/pier.h"
 #include "mesh/sphere_mesh_contact.h"
 
@@ -35,7 +36,7 @@ namespace {
 constexpr double kE = 1e9;
 constexpr double kR = 0.1;
 constexpr double kDelta = 0.01;
-double kn_for(double radius) { return kPi * kE * (2.0 * radius) / 12.0; }
+double kn_for(double radius) { return eq1_contact_stiffness(kE, 2.0 * radius); }
 
 /// Total force on the sphere from all contacts, via the linear contact law
 /// (static contact: no relative velocity, no tangential history).

@@ -4,6 +4,7 @@
 // one rank (par::serial()) inside the same mpirun.
 #include "bridge/block_bonds.h"
 #include "bonded/hcp_lattice.h"
+#include "common/ice_formulas.h"
 #include "parallel/comm.h"
 
 #include <gtest/gtest.h>
@@ -21,7 +22,7 @@ using hs::bridge::BlockParticleBonds;
 TEST(ParallelBlockBonds, OwnerEvaluatesImpulsesSumAndBreaksAgreeWithOneRank) {
   const par::Comm& comm = test_world();
   constexpr double D = 0.25, r = 0.5 * D, E = 1e7, rho = 920.0;
-  const double k = kPi * E * D / 12.0, m = rho * hcp_cell_volume(D), I = 0.4 * m * r * r;
+  const double k = eq1_contact_stiffness(E, D), m = rho * hcp_cell_volume(D), I = 0.4 * m * r * r;
   EngineDef d;
   d.gravity = Vec3::Zero();
   d.youngs_modulus = E;

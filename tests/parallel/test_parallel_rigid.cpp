@@ -3,6 +3,7 @@
 #include "bridge/block_contact.h"
 #include "bridge/coupling.h"
 #include "bonded/engine.h"
+#include "common/ice_formulas.h"
 #include "parallel/comm.h"
 #include "parallel/decomposition.h"
 #include "rigid/rigid_world.h"
@@ -100,7 +101,7 @@ TEST(ParallelRigid, BlockContactOnRanksMatchesSerialWithHistoryTravellingAcrossC
   // (ImpulseCoupler), are the serial load and move a replicated rigid block identically.
   const par::Comm& comm = test_world();
   const double D = 0.5, rho = 920.0, E = 1e9, g = 9.81, tilt = 0.1;
-  const double kn = kPi * E * D / 12.0, m = rho * kPi * D * D * D / 6.0;
+  const double kn = eq1_contact_stiffness(E, D), m = rho * kPi * D * D * D / 6.0;
   bonded::EngineDef d;
   d.gravity = Vec3(0, 0, -g);
   d.youngs_modulus = E;

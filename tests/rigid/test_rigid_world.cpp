@@ -1,5 +1,6 @@
 // RigidWorld in water: freeboard, undamped heave period, self-righting; handles;
 // friction changed at run time.
+#include "common/ice_formulas.h"
 #include "rigid/rigid_world.h"
 
 #include <gtest/gtest.h>
@@ -14,7 +15,7 @@ namespace {
 constexpr double kRhoI = 910.0, kRhoW = 1025.0, kG = 9.81;
 
 // Equilibrium centre height of a flat slab of thickness h (draft h rho_i/rho_w).
-double z_equilibrium(double h) { return 0.5 * h - h * kRhoI / kRhoW; }
+double z_equilibrium(double h) { return 0.5 * h - flotation_draft(h, kRhoI, kRhoW); }
 
 TEST(RigidWorld, SlabFloatsAtFreeboard) {
   // 2 x 2 x 0.6 m, released with its centre at the water line (off equilibrium).
@@ -26,7 +27,7 @@ TEST(RigidWorld, SlabFloatsAtFreeboard) {
   const BlockId id = w.add_block(b);
   w.step(15.0);
   const double freeboard = w.position(id).z() + 0.3;
-  const double expected = 0.6 * (1.0 - kRhoI / kRhoW);
+  const double expected = flotation_freeboard(0.6, kRhoI, kRhoW);
   EXPECT_NEAR(freeboard / expected, 1.0, 0.01) << "freeboard " << freeboard;
   EXPECT_LT(w.velocity(id).norm(), 1e-4);
   std::printf("[ rigid ] freeboard %.6f m, expected %.6f m, rel error %.2e\n", freeboard,
