@@ -33,7 +33,7 @@ TEST(HcpLattice, SpacingIsExactlyDAndBulkHas12Neighbours) {
   double dmin = INFINITY;
   for (std::size_t i = 0; i < x.size(); ++i)
     for (std::size_t j = i + 1; j < x.size(); ++j) dmin = std::min(dmin, (x[i] - x[j]).norm());
-  EXPECT_NEAR(dmin, D, 1e-12);
+  EXPECT_NEAR(dmin, D, 1e-14);  // measured 1.0e-15 m (was 1e-12)
   std::vector<int> coord;
   pairs_within(x, D * (1 + 1e-9), &coord);
   // A particle at least D from every face of the box is in the bulk: exactly 12 touching.
@@ -155,7 +155,8 @@ TEST(NeighbourList, FindsEveryContactAndRebuildsOnlyAfterHalfSkin) {
     }
   }
   EXPECT_GT(e.stats().neighbor_rebuilds, 3u);
-  EXPECT_LT(e.stats().neighbor_rebuilds, 400u) << "rebuilding far more often than the skin requires";
+  // Measured 19 rebuilds (limit 200, was 400); the per-step check above is the exact one.
+  EXPECT_LT(e.stats().neighbor_rebuilds, 200u) << "rebuilding far more often than the skin requires";
 }
 
 TEST(Water, SphereBuoyancyAndQuadraticDragGiveTerminalVelocity) {
@@ -176,7 +177,7 @@ TEST(Water, SphereBuoyancyAndQuadraticDragGiveTerminalVelocity) {
   e.run(20000);
   const double r = 0.5 * ice.D;
   const double vt = std::sqrt(2.0 * (2000.0 - 1025.0) * V * 9.81 / (1025.0 * 0.5 * kPi * r * r));
-  EXPECT_NEAR(-e.particles().v[0].z(), vt, 1e-6 * vt);
+  EXPECT_NEAR(-e.particles().v[0].z(), vt, 5e-13 * vt);  // measured 4.6e-14 relative (was 1e-6)
 }
 
 TEST(Water, ColumnBuoyancyIsLinearInDraftAndMatchesSubmergedVolume) {
@@ -192,6 +193,7 @@ TEST(Water, ColumnBuoyancyIsLinearInDraftAndMatchesSubmergedVolume) {
   for (double z : {-0.3, -0.1, 0.0, 0.05, 0.15, 0.4}) {
     const double h = 1e-6;
     const double f_num = -(buoyancy_potential(w, g, z + h, r, V) - buoyancy_potential(w, g, z - h, r, V)) / (2 * h);
-    EXPECT_NEAR(f_num, w.density * g * V * submerged_fraction(w, z, r), 1e-5) << z;
+    // Central difference, h = 1e-6 m: measured at most 2.5e-8 N (limit 2.5e-7 N, was 1e-5).
+    EXPECT_NEAR(f_num, w.density * g * V * submerged_fraction(w, z, r), 2.5e-7) << z;
   }
 }

@@ -126,7 +126,7 @@ TEST(Validation, HcpBarTensionAlongCAxis) {
   // Strength: a crossing bond has u_n = D eps nz^2 and u_s = D eps nz sqrt(1 - nz^2), so
   // tau / sigma = sqrt(1/nz^2 - 1) = 0.707 < 1 = tau_c / sigma_c: tension governs. It
   // breaks at u_n = sigma_c A_b / k, when its force (k u, along z) is sigma_c A_b / nz.
-  const double Ab = d.bond[0].area();
+  const double Ab = kPi * 0.25 * D * D;  // bond of radius D/2: pi (D/2)^2, by hand (not area())
   const double F_break = nb_cross * sigma_c * Ab / nz;
   const double eps_c = sigma_c * Ab / (k * D * nz * nz);
 
@@ -180,18 +180,21 @@ TEST(Validation, HcpBarTensionAlongCAxis) {
               F_first, F_peak, eps_peak, F_break, eps_c, F_first / F_break, F_peak / F_break,
               (unsigned long long)e.stats().bonds_broken, (unsigned long long)e.stats().bonds_broken_tension,
               (unsigned long long)e.stats().bonds_broken_shear);
-  // The affine response is exact for this lattice; what remains is the dynamic lag of a
-  // quasi-static pull (V / c_P ~ 5e-5 vs eps ~ 1e-3) and sampling: 2 %.
-  EXPECT_NEAR(E_meas / E_affine, 1.0, 0.02);
+  // The affine response is exact for this lattice; the dynamic lag of the quasi-static pull
+  // (V / c_P ~ 5e-5 vs eps ~ 1e-3) is a constant offset that the fitted slope ignores.
+  // Measured 5.4e-10 (limit 5e-9, was 2 %).
+  EXPECT_NEAR(E_meas / E_affine, 1.0, 5e-9);
   // The bar's modulus is below the bulk lattice value only through the missing bonds of
   // its edge particles; E_lat / E = pi sqrt(2)/6 = 0.7405 in the bulk. A 3x3 section
   // keeps nb / (3 n_per_layer) in [0.6, 1].
   EXPECT_GT(E_meas / ice.E, 0.6 * lattice_modulus(ice) / ice.E);
   EXPECT_LT(E_meas / ice.E, 1.02 * lattice_modulus(ice) / ice.E);
-  // Strength: first rupture and peak load within 10 % of the bond-strength prediction.
+  // Strength: first rupture and peak load against the bond-strength prediction. Measured both
+  // 0.9988 (-1.2e-3: the load is sampled one step before the first rupture). Limit 1.2 %
+  // (was 10 %), so a bond area 10 % off fails here too.
   ASSERT_GT(F_first, 0.0) << "the bar did not break";
-  EXPECT_NEAR(F_first / F_break, 1.0, 0.10);
-  EXPECT_NEAR(F_peak / F_break, 1.0, 0.10);
+  EXPECT_NEAR(F_first / F_break, 1.0, 0.012);
+  EXPECT_NEAR(F_peak / F_break, 1.0, 0.012);
   EXPECT_GT(e.stats().bonds_broken_tension, 0u);
 }
 
@@ -322,9 +325,10 @@ TEST(Validation, FloatingStripEndLoadMatchesHetenyi) {
   std::printf("[strip] end deflection at 1 s intervals after loading began:");
   for (double w : w_hist) std::printf(" %.5f", w);
   std::printf("\n");
-  // Static: the last two 1-s samples agree within 0.5 % (heave damping ratio ~0.75).
+  // Static: the last two 1-s samples agree (heave damping ratio ~0.75); measured 1.6e-4
+  // (limit 2e-3, was 5e-3).
   ASSERT_GE(w_hist.size(), 2u);
-  EXPECT_NEAR(w_hist[w_hist.size() - 2] / w_meas, 1.0, 0.005) << "not settled";
+  EXPECT_NEAR(w_hist[w_hist.size() - 2] / w_meas, 1.0, 2e-3) << "not settled";
   // Brief's check: semi-infinite Hetenyi beam with the continuum E_eff, within 15 %: the
   // formula ignores the lattice's discreteness (4 layers: EI_lattice/EI_cont = 0.85 -> w
   // up ~4 %), the foundation beyond the load (the loaded centres sit ~D/4 inside the
@@ -415,8 +419,9 @@ TEST(Validation, FloatingSlabFreeboardAndHeavePeriod) {
                 e.particles().size(), h, freeboard, freeboard_th, freeboard / freeboard_th);
   }
   // The column model makes the slab a solid column of height h; what is left is the
-  // lattice's compression under its weight (~1e-4 strain) and residual motion: 2 %.
-  EXPECT_NEAR(freeboard / freeboard_th, 1.0, 0.02);
+  // lattice's compression under its weight and residual motion. Measured 1.2e-7 (limit
+  // 1.5e-6, was 2 %).
+  EXPECT_NEAR(freeboard / freeboard_th, 1.0, 1.5e-6);
 
   // (b) Heave: released 0.05 m below equilibrium, no drag (bond damping acts only on
   // relative motion, so it does not damp the rigid heave).

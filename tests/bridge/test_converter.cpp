@@ -180,33 +180,37 @@ TEST(Converter, BadInputIsRefusedWithAClearMessage) {
   Engine e(engine_def(mat, 0.0, 1.0));
   IceMaterial im;
   im.diameter = mat.D;
-  auto expect_error = [&](BlockState b, IceMaterial m, const char* what) {
+  // Each refusal names the field (err.path()) and says what is wrong or what to do.
+  auto expect_error = [&](BlockState b, IceMaterial m, const char* what, const char* path, const char* says) {
     try {
       bridge::convert_block(e, b, m);
       ADD_FAILURE() << "accepted: " << what;
     } catch (const InputError& err) {
       std::printf("[bad input] %s -> %s\n", what, err.what());
+      EXPECT_EQ(err.path(), path) << what;
+      EXPECT_NE(std::string(err.what()).find(says), std::string::npos) << what << ": " << err.what();
     }
   };
   BlockState ok;
   ok.density = kRhoI;
   BlockState b = ok;
   b.half_extents = Vec3(1, -1, 1);
-  expect_error(b, im, "negative half extent");
+  expect_error(b, im, "negative half extent", "block/half_extents", "half extents must be positive and finite");
   b = ok;
   b.half_extents = Vec3(1, 1, 0.1);
-  expect_error(b, im, "block thinner than a particle");
+  expect_error(b, im, "block thinner than a particle", "block/half_extents",
+               "use a smaller particle diameter or keep the block rigid");
   b = ok;
   b.density = 0;
-  expect_error(b, im, "no mass or density");
+  expect_error(b, im, "no mass or density", "block", "give a positive mass (kg) or density (kg/m^3)");
   b = ok;
   b.mass = 5.0;
-  expect_error(b, im, "mass and density disagree");
+  expect_error(b, im, "mass and density disagree", "block", "disagree; give one of them");
   b = ok;
   b.pose.orientation = Quat(0, 0, 0, 0);
-  expect_error(b, im, "zero quaternion");
+  expect_error(b, im, "zero quaternion", "block/orientation", "must be finite and non-zero");
   IceMaterial bad = im;
   bad.diameter = 0;
-  expect_error(ok, bad, "zero diameter");
+  expect_error(ok, bad, "zero diameter", "material/diameter", "particle diameter must be positive and finite");
   EXPECT_EQ(e.particles().size(), 0u) << "a refused conversion must not leave particles behind";
 }

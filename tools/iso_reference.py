@@ -1,0 +1,89 @@
+#!/usr/bin/python3
+"""ISO 19906 reference values for tests/analysis/test_iso19906.cpp, computed independently.
+
+The formulas are typed in again from docs/iso19906.md and /work/shared/reference/validation.md
+(Croasdale & Cammaert 1994 for level ice on a cone; Dolgopolov et al. 1975 for the keel), with
+Python's math module, without looking at src/analysis/iso19906.cpp. The C++ test compares the
+module against these numbers to 1e-9 relative, which catches an error shared by the module and
+the test's own Hand struct.
+
+    /usr/bin/python3 tools/iso_reference.py            print the values as C++ lines for the test
+    /usr/bin/python3 tools/iso_reference.py --check    compare with the values stored in the test
+                                                       (exit 1 if any differs by more than 1e-15: repr() round-trips)
+
+The case is the test's paper_case(): h 0.6 m, w 14 m, a 52 deg, sigma_f 0.5 MPa, E 5 GPa,
+nu 0.3, mu = mu_i = 0.1, rho_i 910, rho_w 1025, g 9.81, h_r 5 m, e 0.3, th 40 deg, phi 30 deg,
+c 3 kPa, h_k 4 m.
+"""
+import math
+import pathlib
+import re
+import sys
+
+CASE = dict(h=0.6, w=14.0, sigma_f=0.5e6, E=5.0e9, nu=0.3, a_deg=52.0, mu=0.1, mu_i=0.1,
+            rho_i=910.0, rho_w=1025.0, g=9.81, h_r=5.0, e=0.3, th_deg=40.0, phi_deg=30.0,
+            c=3.0e3, h_k=4.0)
+
+# Order of the near(...) lines in the test.
+KEYS = ["xi", "L_c", "l", "H_B", "H_P", "P", "H_R", "H_L", "H_T", "F_H", "F_K"]
+
+
+def iso(h, w, sigma_f, E, nu, a_deg, mu, mu_i, rho_i, rho_w, g, h_r, e, th_deg, phi_deg, c, h_k):
+    a = math.radians(a_deg)
+    th = math.radians(th_deg)
+    phi = math.radians(phi_deg)
+    sa, ca = math.sin(a), math.cos(a)
+    ta, cta = math.tan(a), 1.0 / math.tan(a)
+    tt, ctt = math.tan(th), 1.0 / math.tan(th)
+    s = 1.0 - tt / ta  # (1 - tan th / tan a)
+    r = {}
+    r["xi"] = (sa + mu * ca) / (ca - mu * sa)
+    r["L_c"] = (E * h ** 3 / (12.0 * rho_w * g * (1.0 - nu ** 2))) ** 0.25
+    r["l"] = w + math.pi ** 2 * r["L_c"] / 4.0
+    r["H_B"] = 0.68 * r["xi"] * sigma_f * (rho_w * g * h ** 5 / E) ** 0.25 * r["l"]
+    r["H_P"] = w * h_r ** 2 * mu_i * rho_i * g * (1.0 - e) * s ** 2 / (2.0 * tt)
+    r["P"] = (0.5 * mu_i * (mu_i + mu) * rho_i * g * (1.0 - e) * h_r ** 2 * sa * (ctt - cta) * s
+              + 0.5 * (mu_i + mu) * rho_i * g * (1.0 - e) * h_r ** 2 * ca * cta * s
+              + h_r * h * rho_i * g * (sa + mu * ca) / sa)
+    r["H_R"] = w * r["P"] / (ca - mu * sa)
+    r["H_L"] = r["xi"] * w * h_r * s * (0.5 * h_r * rho_i * g * (1.0 - e) * (ctt - cta + math.tan(phi) * s) + c)
+    r["H_T"] = 1.5 * w * h ** 2 * rho_i * g * ca / (sa - mu * ca)
+    r["F_H"] = ((r["H_B"] + r["H_P"] + r["H_R"] + r["H_L"] + r["H_T"])
+                / (1.0 - r["H_B"] / (sigma_f * r["l"] * h)))
+    mu_phi = math.tan(math.radians(45.0) + phi / 2.0)
+    gamma_e = (1.0 - e) * (rho_w - rho_i) * g
+    r["F_K"] = mu_phi * h_k * w * (h_k * mu_phi * gamma_e / 2.0 + 2.0 * c) * (1.0 + h_k / (6.0 * w))
+    return r
+
+
+def stored_values(test_file):
+    """The near(r.KEY, VALUE) lines of ReferenceValuesFromIndependentScript."""
+    text = test_file.read_text()
+    body = text[text.index("ReferenceValuesFromIndependentScript"):]
+    body = body[:body.index("\n}\n")]
+    return {k: float(v) for k, v in re.findall(r"near\(r\.(\w+),\s*([-+0-9.eE]+)\)", body)}
+
+
+def main():
+    ref = iso(**CASE)
+    if "--check" not in sys.argv[1:]:
+        for k in KEYS:
+            print(f"  near(r.{k}, {ref[k]!r});")
+        return 0
+    test_file = pathlib.Path(__file__).resolve().parent.parent / "tests/analysis/test_iso19906.cpp"
+    stored = stored_values(test_file)
+    bad = 0
+    for k in KEYS:
+        if k not in stored:
+            print(f"{k}: missing from {test_file.name}")
+            bad += 1
+            continue
+        rel = abs(stored[k] - ref[k]) / abs(ref[k])
+        ok = rel <= 1e-15
+        bad += not ok
+        print(f"{k:4s} script {ref[k]!r:>22s}  test {stored[k]!r:>22s}  rel {rel:.1e}  {'ok' if ok else 'DIFFERS'}")
+    return 1 if bad else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
