@@ -89,7 +89,9 @@ TEST(ConversionConsistency, BlockDroppedOnConeGivesTheSameImpulse) {
       c[m] = split(r.impulse);
       if (mu == 0.1) J01[m] = r.impulse;
       EXPECT_EQ(r.conversions, m == 0 ? 0u : 1u) << names[m];
-      if (m == 2) EXPECT_GT(r.first_conversion_time, 0.0);
+      if (m == 2) {
+        EXPECT_GT(r.first_conversion_time, 0.0);
+      }
       std::printf("[ consistency ] cone friction %.1f, %s: impulse (%.1f, %.1f, %.1f) N s: normal %.2f, along the "
                   "slope %.2f (= %.6f mu |normal|), across %.2f; %.2f %% of |rigid| from rigid%s\n",
                   mu, names[m], c[m].J.x(), c[m].J.y(), c[m].J.z(), c[m].normal, c[m].slope,
