@@ -64,19 +64,19 @@ inline void add_spectator(bonded::Engine& e) {
   e.add_particle(p);
 }
 
-/// The parametric pier (friction 0.1) as the engine's mesh wall and as the hybrid's structure,
-/// with a conversion region around it and a flexural strength so low (2 kPa) that a block
-/// converts as soon as the cone pushes on it. Returns the mesh wall's index.
-inline int add_cone(bonded::Engine& e, bridge::HybridDef& d) {
+/// The parametric pier (friction 0.1 unless told) as the engine's mesh wall and as the hybrid's
+/// structure, with a conversion region around it and a flexural strength so low (2 kPa) that a
+/// block converts as soon as the cone pushes on it. Returns the mesh wall's index.
+inline int add_cone(bonded::Engine& e, bridge::HybridDef& d, double friction = 0.1) {
   bonded::MeshWallDef md;
   md.mesh = mesh::make_pier(mesh::PierParams{});
-  md.friction = 0.1;
+  md.friction = friction;
   d.has_structure = true;
   d.structure.vertices = md.mesh.vertices;
   d.structure.triangles = md.mesh.triangles;
   d.structure.triangle_part = md.mesh.triangle_part;
   d.structure.part_count = md.mesh.part_names.size();
-  d.structure.friction = 0.1;
+  d.structure.friction = friction;
   d.region.shape = bridge::ConversionRegion::Shape::Cylinder;
   d.region.radius = 20.0;
   d.region.z_min = -20.0;
@@ -309,7 +309,8 @@ inline BendResult bend(bridge::ConversionMode mode, double flexural_strength, do
 }
 
 /// The bending test's criteria (issue 6), for a = all particles, b = hybrid, c = never: the
-/// hybrid beam converts while loaded and breaks within 10 % of the particle beam's break load;
+/// hybrid beam converts while loaded and breaks within 0.6 % of the particle beam's break load
+/// (measured -0.053 %, serial and at 2 and 3 ranks);
 /// the rigid beam never breaks and its load only grows past that.
 inline void expect_bending_consistent(const BendResult& a, const BendResult& b, const BendResult& c) {
   ASSERT_GT(a.break_time, 0.0) << "the particle beam must break";
@@ -319,7 +320,7 @@ inline void expect_bending_consistent(const BendResult& a, const BendResult& b, 
   EXPECT_GT(b.load_at_conversion, 0.0) << "the beam must convert while loaded";
   EXPECT_LT(b.load_at_conversion, a.peak);
   EXPECT_GT(b.break_time, b.conversion_time);
-  EXPECT_LT(std::abs((b.peak - a.peak) / a.peak), 0.10);
+  EXPECT_LT(std::abs((b.peak - a.peak) / a.peak), 6e-3);  // measured -5.3e-4
   EXPECT_EQ(c.conversions, 0u);
   EXPECT_EQ(c.bonds_broken, 0u);
   EXPECT_GT(c.final_load, a.peak) << "the rigid beam carries more than the particle beam broke at";

@@ -1,12 +1,16 @@
 #!/usr/bin/python3
-"""Compare two hybridsim run files (e.g. 1 rank against 2 ranks).
+"""Compare two hybridsim run files (e.g. 1 rank against 2 ranks, or a run against its repeat).
 
-  compare_runs.py steps A.h5 B.h5 --rtol 1e-6
-      every row of /series/force (and the part forces, pile height, bond and particle counts)
-      agrees within rtol relative to the largest |F| of the run (step-by-step agreement);
+  compare_runs.py steps A.h5 B.h5 --rtol 1e-11 [--etol 6e-11] [--rows N] [--pile-tol 1e-9]
+      every row (the first N when given) of /series/force and the part forces agrees within
+      rtol relative to the largest |F| of the run, the total energy within etol (default rtol)
+      relative to its largest magnitude, the pile height within pile-tol (m), and the bond, particle and
+      broken-bond counts exactly (step-by-step agreement); also prints the mean and peak
+      horizontal force and the final broken-bond count and largest pile height of each run;
+  compare_runs.py same A.h5 B.h5
+      every dataset under /series is bit-identical (a repeated run);
   compare_runs.py stats A.h5 B.h5 --tol 0.05
-      mean and peak horizontal force on the structure agree within tol (relative): the
-      statistical agreement of a whole run, where rounding differences have grown chaotically.
+      mean and peak horizontal force on the structure agree within tol (relative).
 Prints the figures; exit 1 when they disagree.
 """
 import argparse
@@ -20,41 +24,87 @@ def horizontal(f):
     return np.hypot(f[:, 0], f[:, 1])
 
 
+def datasets(group, prefix=""):
+    out = {}
+    for k, v in group.items():
+        if isinstance(v, h5py.Group):
+            out.update(datasets(v, f"{prefix}{k}/"))
+        else:
+            out[prefix + k] = v[()]
+    return out
+
+
+def print_summary(a, b, rows):
+    ha, hb = horizontal(a["series/force"][:rows]), horizontal(b["series/force"][:rows])
+    for name, x, y in [("mean", ha.mean(), hb.mean()), ("peak", ha.max(), hb.max())]:
+        print(f"horizontal force {name}: {x:.9g} N vs {y:.9g} N, relative difference {abs(x - y) / max(abs(x), 1e-300):.3e}")
+    for k in ["series/bonds_broken", "series/pile_height"]:
+        if k in a:
+            print(f"{k}: last {a[k][:rows][-1]} vs {b[k][:rows][-1]}, largest {a[k][:rows].max()} vs {b[k][:rows].max()}")
+
+
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("mode", choices=["steps", "stats"])
+    ap.add_argument("mode", choices=["steps", "same", "stats"])
     ap.add_argument("a")
     ap.add_argument("b")
     ap.add_argument("--rtol", type=float, default=1e-6)
+    ap.add_argument("--etol", type=float, default=None, help="total energy, relative (default: rtol)")
     ap.add_argument("--tol", type=float, default=0.05)
+    ap.add_argument("--rows", type=int, default=0, help="compare only the first N rows (0: all; the files may differ in length)")
+    ap.add_argument("--pile-tol", type=float, default=1e-9, help="m")
     args = ap.parse_args()
     a, b = h5py.File(args.a, "r"), h5py.File(args.b, "r")
     ok = True
-    if a["series/time"].shape != b["series/time"].shape:
-        print(f"different row counts: {a['series/time'].shape} vs {b['series/time'].shape}")
+    na, nb = a["series/time"].shape[0], b["series/time"].shape[0]
+    rows = args.rows if args.rows else na
+    if (not args.rows and na != nb) or rows > min(na, nb):
+        print(f"different row counts: {na} vs {nb} (comparing {rows})")
         return 1
-    if args.mode == "steps":
-        fa, fb = a["series/force"][:], b["series/force"][:]
+    if args.mode == "same":
+        da, db = datasets(a["series"]), datasets(b["series"])
+        if sorted(da) != sorted(db):
+            print(f"different datasets: {sorted(set(da) ^ set(db))}")
+            return 1
+        for k in sorted(da):
+            same = da[k].shape == db[k].shape and da[k].tobytes() == db[k].tobytes()
+            if not same:
+                d = np.abs(da[k].astype(float) - db[k].astype(float)).max() if da[k].shape == db[k].shape else "shape"
+                print(f"series/{k}: DIFFERS (max difference {d})")
+            ok &= same
+        print(f"{len(da)} datasets, {na} rows: {'bit-identical' if ok else 'NOT bit-identical'}")
+    elif args.mode == "steps":
+        ta, tb = a["series/time"][:rows], b["series/time"][:rows]
+        dt = np.abs(ta - tb).max()
+        print(f"time: {rows} rows to t = {ta[-1]:.6g} s, max difference {dt:.3e} s")
+        ok &= dt <= 1e-12 * max(abs(ta[-1]), 1.0)
+        fa, fb = a["series/force"][:rows], b["series/force"][:rows]
         scale = max(np.abs(fa).max(), 1e-300)
         worst = np.abs(fa - fb).max() / scale
-        print(f"force: {fa.shape[0]} rows, max |F| {scale:.6g} N, max |F_a - F_b| / max|F| = {worst:.3e} "
-              f"(limit {args.rtol:g})")
+        print(f"force: max |F| {scale:.6g} N, max |F_a - F_b| / max|F| = {worst:.3e} (limit {args.rtol:g})")
         ok &= worst <= args.rtol
         if "series/parts" in a:
             for p in a["series/parts"]:
-                pa, pb = a[f"series/parts/{p}/force"][:], b[f"series/parts/{p}/force"][:]
+                pa, pb = a[f"series/parts/{p}/force"][:rows], b[f"series/parts/{p}/force"][:rows]
                 w = np.abs(pa - pb).max() / scale
                 print(f"part {p}: {w:.3e}")
                 ok &= w <= args.rtol
         for k in ["series/pile_height", "series/bonds", "series/particles", "series/bonds_broken"]:
             if k in a:
-                d = np.abs(a[k][:].astype(float) - b[k][:].astype(float)).max()
-                print(f"{k}: max difference {d:.3e}")
-                ok &= d <= (1e-9 if "pile" in k else 0)
-        ea, eb = a["series/energy/total"][:], b["series/energy/total"][:]
+                xa, xb = a[k][:rows].astype(float), b[k][:rows].astype(float)
+                d = np.abs(xa - xb).max()
+                lim = args.pile_tol if "pile" in k else 0
+                print(f"{k}: max difference {d:.3e} (limit {lim:g})")
+                if d > lim:
+                    i = int(np.argmax(np.abs(xa - xb) > lim))
+                    print(f"  first at row {i}, t = {ta[i]:.6g} s: {xa[i]} vs {xb[i]}")
+                ok &= d <= lim
+        ea, eb = a["series/energy/total"][:rows], b["series/energy/total"][:rows]
         we = np.abs(ea - eb).max() / max(np.abs(ea).max(), 1e-300)
-        print(f"total energy: max relative difference {we:.3e}")
-        ok &= we <= args.rtol
+        etol = args.rtol if args.etol is None else args.etol
+        print(f"total energy: max relative difference {we:.3e} (limit {etol:g})")
+        ok &= we <= etol
+        print_summary(a, b, rows)
     else:
         ha, hb = horizontal(a["series/force"][:]), horizontal(b["series/force"][:])
         for name, x, y in [("mean", ha.mean(), hb.mean()), ("peak", ha.max(), hb.max())]:

@@ -96,9 +96,10 @@ TEST(ParallelBlockBonds, OwnerEvaluatesImpulsesSumAndBreaksAgreeWithOneRank) {
   EXPECT_LT(ss.size(), 40u);
   EXPECT_EQ(sd.size(), ss.size());
   EXPECT_EQ(broken, static_cast<std::int64_t>(ss.stats().broken));
-  EXPECT_LT(dJ, 1e-12);
-  EXPECT_LT(dH, 1e-12);
-  EXPECT_LT(dx, 1e-12);
+  // Measured (2; 3 ranks): impulse 2.3e-15, 2.6e-15; moment 9.9e-16, 3.1e-15; dx 0.
+  EXPECT_LT(dJ, 3e-14);
+  EXPECT_LT(dH, 3e-14);
+  EXPECT_LT(dx, 1e-15);
   if (comm.size() > 1) {
     EXPECT_GT(migrated, 0);
   }

@@ -114,14 +114,16 @@ TEST(ParallelConsistency, BlockConvertedInFreeFlightAcrossTheCuts) {
                 end.v, end.w);
   }
   EXPECT_GE(fd.t, 1.0);
-  EXPECT_LT(fd.path_err, 1e-6);
+  EXPECT_LT(fd.path_err, 3e-13);  // m; measured 2.4e-14 - 2.6e-14 (1-3 ranks)
   EXPECT_LT(fd.dL_run, 1e-10);
   EXPECT_EQ(fd.bonds, static_cast<std::int64_t>(r.bonds_created));
   EXPECT_EQ(fd.steps, fs.steps);
   EXPECT_EQ(end.count, static_cast<std::int64_t>(cs.r.particles_created));
-  EXPECT_LT(end.x, 1e-9);
-  EXPECT_LT(end.v, 1e-9);
-  EXPECT_LT(end.w, 1e-8);  // undamped bonds: spins carry round-off at the lattice's highest frequency
+  // Measured (1; 2; 3 ranks): x 0, 2.0e-14, 2.2e-14 m; v 0, 1.7e-11, 1.4e-11 m/s; w 0, 1.6e-10,
+  // 1.6e-10 rad/s (undamped bonds: spins carry round-off at the lattice's highest frequency).
+  EXPECT_LT(end.x, 3e-13);
+  EXPECT_LT(end.v, 2e-10);
+  EXPECT_LT(end.w, 2e-9);
   if (world().size() > 1) {
     EXPECT_GT(moved, 0u) << "the particles must cross cuts in flight";
     EXPECT_EQ(ranks_end, world().size());
@@ -147,12 +149,12 @@ TEST(ParallelConsistency, FloatingBlockConvertedAcrossTheCutsKeepsItsDraft) {
                 fd.z1, fd.t, fd.z0 - fd.z1, 100.0 * (fd.z0 - fd.z1) / fd.freeboard, fd.freeboard, fd.vmax,
                 std::abs(fd.z1 - fs.z1), std::abs(fd.vmax - fs.vmax), end.x, end.v);
   EXPECT_GT(fd.r.sites_trimmed, 0u) << "the test must exercise layer balancing";
-  EXPECT_LT(std::abs(fd.z1 - fd.z0), 0.02 * fd.freeboard);
+  EXPECT_LT(std::abs(fd.z1 - fd.z0), 0.011 * fd.freeboard);  // measured 0.109 % (1-3 ranks)
   EXPECT_LT(fd.vmax, 1e-3);
   EXPECT_EQ(fd.r.particles_created, fs.r.particles_created);
   EXPECT_EQ(end.count, static_cast<std::int64_t>(fs.r.particles_created));
-  EXPECT_LT(end.x, 1e-9);
-  EXPECT_LT(end.v, 1e-9);
+  EXPECT_LT(end.x, 5e-15);  // m; measured 0, 4.4e-16, 4.4e-16 (1; 2; 3 ranks)
+  EXPECT_LT(end.v, 2e-12);  // m/s; measured 0, 9.6e-14, 1.2e-13
   if (world().size() > 1) {
     EXPECT_EQ(ranks, world().size()) << "the block must straddle every cut";
     EXPECT_GT(across, 0) << "some bonds must join particles on different ranks";
@@ -230,7 +232,7 @@ TEST(ParallelConsistency, BeamLoadedInBendingAcrossTheCutsBreaksAtTheParticleBea
   for (int m = 0; m < 3; ++m) {
     EXPECT_EQ(d[m][1], 0.0) << "break time, mode " << m;
     EXPECT_EQ(d[m][2], 0.0) << "conversion time, mode " << m;
-    EXPECT_LT(d[m][3], 1e-9 * a.peak) << "load, mode " << m;
+    EXPECT_LT(d[m][3], 3e-12 * a.peak) << "load, mode " << m;  // measured <= 1.04e-8 N = 2.8e-13 of it (3 ranks)
     EXPECT_EQ(d[m][4], 0.0) << "steps, mode " << m;
     EXPECT_EQ(d[m][5], 0.0) << "bonds broken, mode " << m;
   }

@@ -114,8 +114,10 @@ void compare(ConversionMode mode, const char* label) {
                 label, world().size(), static_cast<unsigned long long>(rd.conversions),
                 static_cast<unsigned long long>(rd.particles_created), dx, ser.engine->particles().size(), dblock,
                 Pd.x(), Pd.y(), Pd.z(), Ps.x(), Ps.y(), Ps.z());
-  EXPECT_LT(dx, 1e-9);
-  EXPECT_LT(dblock, 1e-9);
+  // Measured (2; 3 ranks): rigid 1.8e-15, 1.3e-15 m, blocks 6.3e-16, 1.1e-15 m; converting
+  // 4.4e-15, 3.9e-15 m, blocks 0.
+  EXPECT_LT(dx, 5e-14);
+  EXPECT_LT(dblock, 1e-14);
   EXPECT_LT((Pd - Ps).norm(), 1e-9 * std::max(1.0, Ps.norm()));
 }
 
@@ -166,16 +168,26 @@ TEST(ParallelHybrid, ConeImpulseAgreesAcrossModesAndWithSerial) {
     if (world().rank() == 0)
       std::printf("[ mpi hybrid ] cone impulse, %s, %d ranks: (%.2f, %.2f, %.2f) N s, %.2e from serial\n", names[m],
                   world().size(), Jd[m].x(), Jd[m].y(), Jd[m].z(), rel);
-    EXPECT_LT(rel, 1e-9);
+    EXPECT_LT(rel, 1e-12);  // measured <= 7.9e-14 (2 and 3 ranks)
   }
-  for (int m = 1; m < 3; ++m) EXPECT_LT((Jd[m] - Jd[0]).norm() / Jd[0].norm(), 0.10);
+  // As in the serial test (measured 2.87 %, 2.97 %).
+  for (int m = 1; m < 3; ++m) EXPECT_LT((Jd[m] - Jd[0]).norm() / Jd[0].norm(), 0.05);
 }
 
 // The pile test of tests/bridge/test_conversion_consistency.cpp, distributed: three blocks
 // stacked crosswise on a fixed floor, settled 1 s as rigid blocks, the middle one converted
 // (its particles spread over the ranks: the floor's centre is the cut), 0.3 s more. Energy
-// injected (largest rise of the total over its value before the conversion) < 1 % of m g h,
-// and the particles equal to a serial copy.
+// injected (largest rise of the total over its value before the conversion), and the particles
+// against a serial copy over the first 0.15 s after the conversion.
+//
+// Why not to the end: about 0.18 s after the conversion the settling particles go through an
+// episode that amplifies any difference exponentially (e-folding ~0.7 ms for ~12 ms). A serial
+// copy perturbed by 1e-15 m in one particle position diverges there exactly as the distributed
+// run does, so this is the run's own sensitivity to round-off, not a parallel defect. Measured
+// (2 ranks; serial perturbed by 1e-15 m): |x - x_serial| stays below 6e-15 m up to 0.18 s and
+// is 9.0e-12 m (4.5e-12 m) at 0.3 s; with the bonds' bending and twisting stiffness 10 % lower
+// (bond area() 10 % larger) the same episode takes it to 3.1e-6 m (5.6e-7 m), which failed the
+// former 1e-9 m limit at 0.3 s.
 struct PileRun {
   std::unique_ptr<bonded::Engine> e;
   std::unique_ptr<HybridSystem> h;
@@ -211,20 +223,23 @@ TEST(ParallelHybrid, BlockConvertedInAPileInjectsNoEnergyAndMatchesSerial) {
   const double E0 = pile_energy(dis);
   ser.h->convert(ser.h->world()->blocks().at(2));
   const auto rep = dis.h->convert(mid);
-  double Emax = pile_energy(dis);
+  double Emax = pile_energy(dis), dx_early = 0.0;
+  const std::uint64_t n_early = steps(0.15);
   for (std::uint64_t k = 0, n = steps(0.3); k < n; ++k) {
     ser.h->step();
     dis.h->step();
     Emax = std::max(Emax, pile_energy(dis));
+    if (k < n_early) dx_early = std::max(dx_early, max_position_difference(*dis.e, *ser.e));
   }
   const double dx = max_position_difference(*dis.e, *ser.e);
   if (world().rank() == 0)
-    std::printf("[ mpi hybrid ] pile, %d ranks: middle block -> %zu particles, energy injected %.2e J (m g h %.1f J), "
-                "max |x - x_serial| %.2e m\n",
-                world().size(), rep.particles_created, Emax - E0, mgh, dx);
+    std::printf("[ mpi hybrid ] pile, %d ranks: middle block -> %zu particles (serial %zu), energy injected %.2e J (m g h "
+                "%.1f J), max |x - x_serial| %.2e m over the first 0.15 s, %.2e m at 0.3 s (not checked)\n",
+                world().size(), rep.particles_created, ser.h->report().particles_created, Emax - E0, mgh, dx_early, dx);
   EXPECT_GT(rep.particles_created, 0u);
-  EXPECT_LT(Emax - E0, 0.01 * mgh);
-  EXPECT_LT(dx, 1e-9);
+  EXPECT_EQ(rep.particles_created, ser.h->report().particles_created);
+  EXPECT_LT(Emax - E0, 1e-8);     // J; measured 1.11e-9 (2 and 3 ranks)
+  EXPECT_LT(dx_early, 2e-14);     // m; measured 1.3e-15 (2 ranks), 1.0e-15 (3 ranks)
 }
 
 // Freeze bonds at a conversion under MPI: blocks A and B side by side on the slab of `make`,
@@ -342,8 +357,8 @@ TEST(ParallelHybrid, FreezeBondsOfAConvertedBlockCarryOverAsInSerial) {
   EXPECT_EQ(ser.h->block_particle_bonds(), ice_bonds - rs.block_bonds_handed_over + rs.joints_to_bonds);
   EXPECT_EQ(dis.h->block_particle_bonds(), ser.h->block_particle_bonds());
   EXPECT_TRUE(same_bonds);
-  EXPECT_LT(dx, 1e-9);
-  EXPECT_LT(dblock, 1e-9);
+  EXPECT_LT(dx, 2e-14);     // m; measured 1.6e-15 (2 ranks), 1.1e-15 (3 ranks)
+  EXPECT_LT(dblock, 1e-15);  // m; measured 1.4e-17, 9.4e-17
 }
 
 TEST(ParallelHybrid, BlockParticleBondStressesFromEveryRankDecideAsInSerial) {

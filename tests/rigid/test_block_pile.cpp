@@ -105,12 +105,12 @@ PileResult drop_pile(double seconds) {
 
 TEST(RigidBlockPile, SettlesWithoutInterpenetration) {
   const PileResult r = drop_pile(6.0);
-  EXPECT_LT(r.max_overlap, 0.02);      // m, pairwise SAT depth
-  EXPECT_GT(r.lowest_z, -0.02);        // nothing sinks into the floor
+  EXPECT_LT(r.max_overlap, 3.5e-4);    // m, pairwise SAT depth; measured 3.5e-5
+  EXPECT_GT(r.lowest_z, -1e-3);        // nothing sinks into the floor; measured -9.7e-5 m
   // At rest up to the sequential-impulse solver's resting jitter (a few mm/s).
-  EXPECT_LT(r.kinetic_energy, 1e-5 * r.released);
+  EXPECT_LT(r.kinetic_energy, 4e-7 * r.released);  // measured 3.8e-8 (4.0e-3 J of 1.06e5 J)
   EXPECT_LT(r.max_speed, 0.02);        // m/s
-  std::printf("[ rigid ] pile: max overlap %.4f m, lowest z %.4f m, KE %.3e J of %.3e J "
+  std::printf("[ rigid ] pile: max overlap %.3e m, lowest z %.3e m, KE %.3e J of %.3e J "
               "released, max speed %.4f m/s\n",
               r.max_overlap, r.lowest_z, r.kinetic_energy, r.released, r.max_speed);
 }
