@@ -303,13 +303,13 @@ struct RunFile::Impl {
   /// Upper bound of the bytes the next flush adds to the file: whole chunks for the buffered
   /// series rows, new datasets, B-tree nodes and a fixed margin for the rest of the metadata.
   std::uint64_t series_flush_bytes() const {
-    std::uint64_t b = 256 * 1024;
+    std::uint64_t b = 64 * 1024;  // superblock, group heaps and B-trees, free-space slack
     for (const Series& s : series) {
       const std::uint64_t rows = chunk_rows_for(s.width);
       const std::uint64_t chunk = rows * static_cast<std::uint64_t>(s.width) * 8;
       if (!s.dset.valid()) b += 8192;  // object header, attributes, index (its chunk is counted below)
       const std::uint64_t chunks = ceil_div(s.rows_total, rows) - ceil_div(s.rows_written, rows);
-      b += chunks * (chunk + 1024);
+      b += chunks * (chunk + 4096);  // each chunk and its share of a B-tree node
     }
     return b;
   }

@@ -403,7 +403,9 @@ TEST(CliOutput, ResultHeldOpenByAReaderIsNotTruncated) {
   ASSERT_EQ(::flock(fd, LOCK_SH | LOCK_NB), 0);  // what an HDF5 reader (h5py, ParaView) holds
   const Result again = hybridsim("run tiny.json -o held.h5 --set time.duration=0.01");
   EXPECT_EQ(again.rc, 0) << again.err;  // main: exit 2, after truncating the file to 0 bytes
-  EXPECT_EQ(read_fd(fd), before) << "the reader's file changed under it";
+  const std::string seen = read_fd(fd);
+  EXPECT_TRUE(seen == before) << "the reader's file changed under it: " << seen.size() << " bytes, was "
+                              << before.size();
   ::close(fd);
   EXPECT_GE(rows(work_dir() / "held.h5", "/series/time"), 3u);  // the new, complete result
   EXPECT_LE(rows(work_dir() / "held.h5", "/series/time"), 4u);
@@ -419,18 +421,18 @@ TEST(CliOutput, OutputThatIsTheSceneIsRefused) {
   EXPECT_NE(r.err.find("error: victim.json"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("the scene file"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("-o"), std::string::npos) << r.err;
-  EXPECT_EQ(slurp(work_dir() / "victim.json"), scene);
+  EXPECT_TRUE(slurp(work_dir() / "victim.json") == scene) << "the scene file was overwritten";
   fs::remove(work_dir() / "link.h5");
   fs::create_symlink("victim.json", work_dir() / "link.h5");
   const Result l = hybridsim("victim.json -o link.h5");
   EXPECT_EQ(l.rc, 2) << l.err;
   EXPECT_NE(l.err.find("the scene file"), std::string::npos) << l.err;
-  EXPECT_EQ(slurp(work_dir() / "victim.json"), scene);
+  EXPECT_TRUE(slurp(work_dir() / "victim.json") == scene) << "the scene file was overwritten";
   // The same scene by another spelling of its path.
   fs::create_directories(work_dir() / "sub");
   const Result d = hybridsim("victim.json -o sub/../victim.json");
   EXPECT_EQ(d.rc, 2) << d.err;
-  EXPECT_EQ(slurp(work_dir() / "victim.json"), scene);
+  EXPECT_TRUE(slurp(work_dir() / "victim.json") == scene) << "the scene file was overwritten";
 }
 
 // Defect 8 (path half) and the same check for `run`: a missing output directory is reported
@@ -469,7 +471,7 @@ TEST(CliOutput, FullDiskEndsWithExitOneAndAReadableFile) {
   ASSERT_GE(pid, 0);
   if (pid == 0) {
     ::signal(SIGXFSZ, SIG_IGN);
-    const rlimit lim{1000000, 1000000};  // bytes; the whole run writes ~0.96 MB of HDF5
+    const rlimit lim{900000, 900000};  // bytes; the whole run writes 959200 bytes of HDF5
     ::setrlimit(RLIMIT_FSIZE, &lim);
     const int st = std::system(cmd.c_str());
     ::_exit(WIFEXITED(st) ? WEXITSTATUS(st) : 100);
@@ -485,7 +487,7 @@ TEST(CliOutput, FullDiskEndsWithExitOneAndAReadableFile) {
   ASSERT_EQ(partial.size(), 1u) << err;
   EXPECT_NE(err.find(partial[0].filename().string()), std::string::npos) << err;
   const std::uint64_t n = rows(partial[0], "/series/time");
-  EXPECT_GE(n, 2u);   // measured: 11 rows, 6 snapshots up to t = 0.05 s of 0.3 s
+  EXPECT_GE(n, 2u);   // measured: 29 rows and 15 snapshots of the 61 and 31 of the whole run
   EXPECT_LT(n, 61u);  // the whole run would have 61
   EXPECT_GE(rows(partial[0], "/snapshots/times"), 1u);
   EXPECT_EQ(rows(partial[0], "/series/force"), n);
