@@ -28,6 +28,8 @@
 //   datasets or attributes after H5Fstart_swmr_write, and every snapshot is a new group.
 //   The file uses the HDF5 1.8 format (libver bounds V18..V18): readable by any HDF5 >= 1.8,
 //   no superblock status flags, attributes larger than 64 KiB allowed.
+//   With RunFileMeta::write_to_partial (hybridsim run) all of this happens in run.partial-<pid>.h5,
+//   which only an explicit close() renames over run.h5 (docs/output.md, "Where the file is written").
 //   While a run has the file open, HDF5 file locking keeps other HDF5 programs out; to peek at a
 //   running simulation use `HDF5_USE_FILE_LOCKING=FALSE h5dump ...` (sees the last flush).
 //

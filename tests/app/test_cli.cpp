@@ -491,4 +491,6 @@ TEST(CliOutput, FullDiskEndsWithExitOneAndAReadableFile) {
   EXPECT_LT(n, 61u);  // the whole run would have 61
   EXPECT_GE(rows(partial[0], "/snapshots/times"), 1u);
   EXPECT_EQ(rows(partial[0], "/series/force"), n);
+  fs::remove(partial[0]);
+  fs::remove(fs::path(partial[0]).replace_extension(".xmf"));
 }
