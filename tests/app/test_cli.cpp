@@ -5,6 +5,8 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/iso19906.h"
+#include "mesh/pier.h"
+#include "mesh/tri_mesh.h"
 
 #include <fcntl.h>
 #include <sys/file.h>
@@ -493,4 +495,43 @@ TEST(CliOutput, FullDiskEndsWithExitOneAndAReadableFile) {
   EXPECT_EQ(rows(partial[0], "/series/force"), n);
   fs::remove(partial[0]);
   fs::remove(fs::path(partial[0]).replace_extension(".xmf"));
+}
+
+// Defect 3, the other inputs: -o naming the structure mesh (by a hard link) or the ridge file is
+// refused before anything is written; both inputs stay as they were.
+TEST(CliOutput, OutputThatIsTheMeshOrTheRidgeFileIsRefused) {
+  hs::mesh::PierParams pp;
+  pp.waterline_diameter = 2.0;
+  pp.cone_top_z = 0.5;
+  pp.cone_bottom_z = -1.0;
+  pp.neck_height = 0.5;
+  pp.shaft_diameter = 1.5;
+  pp.shaft_bottom_z = -3.0;
+  pp.segments = 16;
+  fs::create_directories(work_dir() / "meshes");
+  hs::mesh::write_stl_ascii(hs::mesh::make_pier(pp), (work_dir() / "meshes" / "p.stl").string());
+  const std::string stl = slurp(work_dir() / "meshes" / "p.stl");
+  json j = tiny();
+  j["structure"] = {{"type", "mesh"}, {"mesh", "meshes/p.stl"}, {"position", {-5, 0, 0}}};
+  write("with_mesh.json", j.dump());
+  fs::remove(work_dir() / "hard.h5");
+  fs::create_hard_link(work_dir() / "meshes" / "p.stl", work_dir() / "hard.h5");
+  const Result m = hybridsim("run with_mesh.json -o hard.h5");
+  EXPECT_EQ(m.rc, 2) << m.err;
+  EXPECT_NE(m.err.find("the structure mesh"), std::string::npos) << m.err;
+  EXPECT_TRUE(slurp(work_dir() / "meshes" / "p.stl") == stl) << "the mesh was overwritten";
+
+  write("r.json", R"({"name": "r", "ridge": {
+      "level_ice_thickness": 0.2, "consolidated_layer_thickness": 0.3, "consolidated_layer_width": 2.0,
+      "keel_depth": 2.0, "shoulder_slope_deg": 30, "sail_height": 0.4, "length": 3.0,
+      "block_thickness": 0.2, "seed": 11, "settle": {"max_time": 40}}})");
+  ASSERT_EQ(hybridsim("ridge r.json -o r_ridge.h5").rc, 0);
+  const std::string ridge = slurp(work_dir() / "r_ridge.h5");
+  json b = tiny();
+  b["blocks"] = {{"ridge_file", "r_ridge.h5"}, {"conversion", "never"}};
+  write("with_ridge.json", b.dump());
+  const Result r = hybridsim("run with_ridge.json -o ./r_ridge.h5");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("the ridge file"), std::string::npos) << r.err;
+  EXPECT_TRUE(slurp(work_dir() / "r_ridge.h5") == ridge) << "the ridge file was overwritten";
 }
