@@ -333,7 +333,10 @@ struct RunFile::Impl {
       return;
     }
     const int fd = *static_cast<int*>(handle);
-    const int rc = ::posix_fallocate(fd, static_cast<off_t>(eoa), static_cast<off_t>(bytes));
+    // From the end of what is on disk when HDF5 has allocated space it has not written yet.
+    struct stat st {};
+    const haddr_t from = ::fstat(fd, &st) == 0 ? std::min<haddr_t>(eoa, static_cast<haddr_t>(st.st_size)) : eoa;
+    const int rc = ::posix_fallocate(fd, static_cast<off_t>(from), static_cast<off_t>(eoa - from + bytes));
     if (rc == 0 || rc == EINVAL || rc == EOPNOTSUPP) return;  // (file system without it: unchecked)
     write_failed = true;
     // posix_fallocate may have extended the file partly: back to what HDF5 allocated.
