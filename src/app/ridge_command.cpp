@@ -4,11 +4,14 @@
 #include "json/reader.h"
 #include "rigid/ridge.h"
 #include "io/ridge_file.h"
+#include "io/run_file.h"
 
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
 #include <filesystem>
+#include <stdexcept>
+#include <system_error>
 #include <unistd.h>
 
 namespace hs::app {
@@ -35,7 +38,18 @@ int ridge_command(const std::string& scene_path, const std::string& output, std:
   };
   const rigid::RidgeResult r = rigid::generate_ridge(def, progress);
   if (tty) std::fprintf(stderr, "\n");
-  io::save_ridge(path, r);
+  // Written under a partial name and renamed: an existing ridge file is replaced only by a whole one.
+  const std::string partial = io::partial_path(path, std::to_string(::getpid()));
+  try {
+    io::save_ridge(partial, r);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(partial, ec);
+    throw;
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) throw std::runtime_error("cannot rename '" + partial + "' to '" + path + "': " + ec.message());
   nlohmann::json rep = rigid::ridge_report(r);
   rep["output"] = path;
   out << rep.dump(2) << std::endl;

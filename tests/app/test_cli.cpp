@@ -526,6 +526,7 @@ TEST(CliOutput, OutputThatIsTheMeshOrTheRidgeFileIsRefused) {
       "keel_depth": 2.0, "shoulder_slope_deg": 30, "sail_height": 0.4, "length": 3.0,
       "block_thickness": 0.2, "seed": 11, "settle": {"max_time": 40}}})");
   ASSERT_EQ(hybridsim("ridge r.json -o r_ridge.h5").rc, 0);
+  EXPECT_TRUE(partial_files("r_ridge").empty());  // written as r_ridge.partial-<pid>.h5, then renamed
   const std::string ridge = slurp(work_dir() / "r_ridge.h5");
   json b = tiny();
   b["blocks"] = {{"ridge_file", "r_ridge.h5"}, {"conversion", "never"}};
