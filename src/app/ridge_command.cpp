@@ -1,13 +1,17 @@
 #include "app/ridge_command.h"
 
+#include "app/output_path.h"
 #include "json/reader.h"
 #include "rigid/ridge.h"
 #include "io/ridge_file.h"
+#include "io/run_file.h"
 
 #include <nlohmann/json.hpp>
 
 #include <cstdio>
 #include <filesystem>
+#include <stdexcept>
+#include <system_error>
 #include <unistd.h>
 
 namespace hs::app {
@@ -22,6 +26,11 @@ int ridge_command(const std::string& scene_path, const std::string& output, std:
   root.string("description", "", false, "free text");
   const std::string base = std::filesystem::path(scene_path).parent_path().string();
   const rigid::RidgeDef def = rigid::ridge_def_from_json(root.raw("ridge"), root.at("ridge"), base);
+  // Before the generation (minutes): a path that cannot be written fails now, exit 2.
+  const std::string path = output.empty() ? name + "_ridge.h5" : output;
+  std::filesystem::path keel = def.keel_profile_csv;
+  if (!keel.empty() && keel.is_relative() && !base.empty()) keel = std::filesystem::path(base) / keel;
+  check_output_path(path, "", {{"the ridge scene file", scene_path}, {"the keel profile", keel.string()}});
   const bool tty = isatty(fileno(stderr));
   auto progress = [&](const rigid::RidgeProgress& p) {
     std::fprintf(stderr, "%s[ridge] %-7s t = %7.2f / %.0f s  KE/block = %.3e J  blocks = %zu%s", tty ? "\r" : "",
@@ -29,8 +38,18 @@ int ridge_command(const std::string& scene_path, const std::string& output, std:
   };
   const rigid::RidgeResult r = rigid::generate_ridge(def, progress);
   if (tty) std::fprintf(stderr, "\n");
-  const std::string path = output.empty() ? name + "_ridge.h5" : output;
-  io::save_ridge(path, r);
+  // Written under a partial name and renamed: an existing ridge file is replaced only by a whole one.
+  const std::string partial = io::partial_path(path, std::to_string(::getpid()));
+  try {
+    io::save_ridge(partial, r);
+  } catch (...) {
+    std::error_code ec;
+    std::filesystem::remove(partial, ec);
+    throw;
+  }
+  std::error_code ec;
+  std::filesystem::rename(partial, path, ec);
+  if (ec) throw std::runtime_error("cannot rename '" + partial + "' to '" + path + "': " + ec.message());
   nlohmann::json rep = rigid::ridge_report(r);
   rep["output"] = path;
   out << rep.dump(2) << std::endl;

@@ -4,6 +4,7 @@
 #include "app/run.h"
 
 #include "analysis/iso19906.h"
+#include "app/output_path.h"
 #include "app/progress.h"
 #include "app/run_summary.h"
 #include "app/text.h"
@@ -19,6 +20,7 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 
 namespace hs::app {
 
@@ -34,6 +36,7 @@ void print_warnings(const std::vector<std::string>& warnings, std::FILE* err) {
 
 io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm) {
   io::RunFileMeta meta;
+  meta.write_to_partial = true;  // an existing result is replaced only by a run that closed its file
   meta.scene_text = s.json.dump(2);
   meta.program_version = HYBRIDSIM_VERSION;
   meta.comm = &comm;
@@ -61,6 +64,14 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
       << " particles if all converted); conversion \"" << bridge::to_string(hsu.def.mode) << "\"\n";
   out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
       << " DEM steps (stability limit " << sci(r.rigid_dt_limit, 4) << " s)\n";
+}
+
+/// The output path is writable and is none of the scene's input files.
+void check_run_output(const std::string& out_path, const std::string& scene_path, const scene::Scene& s) {
+  std::vector<InputFile> inputs{{"the scene file", scene_path}};
+  if (s.has_structure && s.structure.type == "mesh") inputs.push_back({"the structure mesh", s.structure.mesh_path});
+  if (s.has_blocks) inputs.push_back({"the ridge file", s.blocks.ridge_file_path});
+  check_output_path(out_path, std::filesystem::path(out_path).replace_extension(".xmf").string(), inputs);
 }
 
 }  // namespace
@@ -115,11 +126,12 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   // 1. load: the scene file, --set overrides applied, validated
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   print_warnings(s.warnings, progress);
+  const std::string out_path = opt.output.empty() ? s.output : opt.output;
+  check_run_output(out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
   sim::Simulation sim = sim::build_simulation(s, comm);
   print_warnings(sim.warnings(), progress);
-  const std::string out_path = opt.output.empty() ? s.output : opt.output;
   io::RunFile file(out_path, run_file_meta(s, comm));
   sim::Recorders rec(sim, s, comm);
   rec.declare(file);
@@ -147,7 +159,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     // Under MPI an error may have struck this rank alone; closing the file (collective) would
     // wait for the others forever. Report and end all ranks; the file holds the last flush.
     std::fprintf(stderr, "error (rank %d): %s; aborting all ranks, %s holds the output up to the last flush\n",
-                 comm.rank(), ex.what(), out_path.c_str());
+                 comm.rank(), ex.what(), file.writing_path().c_str());
     comm.abort(1);
   }
   bar.end();

@@ -3,7 +3,9 @@
 
 #include "io/h5_handle.h"
 
+#include <fcntl.h>
 #include <hdf5.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -118,7 +120,25 @@ const char* xdmf_attribute_type(int width) {
   }
 }
 
+/// Rows per chunk of a series dataset of `width` values: about 32 KiB, at least 64 rows.
+hsize_t chunk_rows_for(int width) { return std::max<hsize_t>(64, 4096 / static_cast<hsize_t>(width)); }
+
+std::uint64_t ceil_div(std::uint64_t a, std::uint64_t b) { return (a + b - 1) / b; }
+
+/// An HDF5 error text that reports a full disk or the file size limit (the sec2 driver prints errno).
+bool mentions_no_space(const std::string& text) {
+  return text.find("errno = 28") != std::string::npos || text.find("errno = 27") != std::string::npos ||
+         text.find("No space left") != std::string::npos || text.find("File too large") != std::string::npos;
+}
+
 }  // namespace
+
+std::string partial_path(const std::string& path, const std::string& id) {
+  const std::filesystem::path p(path);
+  std::filesystem::path out = p;
+  out.replace_filename(p.stem().string() + ".partial-" + id + p.extension().string());
+  return out.string();
+}
 
 // ---------------------------------------------------------------- Impl
 
@@ -159,10 +179,15 @@ struct RunFile::Impl {
     std::vector<FieldInfo> fields;
   };
 
-  std::string path;
-  std::string xdmf_path;
+  std::string path;         // the file HDF5 writes: target, or its partial name (write_to_partial)
+  std::string target;       // where the result ends up (RunFile::path())
+  std::string xdmf_path;    // the index written at each flush (next to `path`)
+  std::string xdmf_target;  // the index of the committed file
   RunFileMeta meta;
   Handle file;
+  /// A reservation or a flush failed: the file holds the last complete flush; close() must not
+  /// write again (a failing H5Fclose leaves HDF5 to crash in its exit handler).
+  bool write_failed = false;
 
   std::vector<Series> series;
   std::size_t buffered_bytes = 0;
@@ -212,7 +237,7 @@ struct RunFile::Impl {
     const hsize_t dims[2] = {0, static_cast<hsize_t>(width)};
     const hsize_t maxdims[2] = {H5S_UNLIMITED, static_cast<hsize_t>(width)};
     // About 32 KiB per chunk, at least 64 rows.
-    const hsize_t chunk_rows = std::max<hsize_t>(64, 4096 / static_cast<hsize_t>(width));
+    const hsize_t chunk_rows = chunk_rows_for(width);
     const hsize_t chunk[2] = {chunk_rows, static_cast<hsize_t>(width)};
     Handle space(check_id(H5Screate_simple(rank, dims, maxdims), "H5Screate_simple", object),
                  H5Sclose);
@@ -275,10 +300,79 @@ struct RunFile::Impl {
     buffered_bytes = 0;
   }
 
+  /// Upper bound of the bytes the next flush adds to the file: whole chunks for the buffered
+  /// series rows, new datasets, B-tree nodes and a fixed margin for the rest of the metadata.
+  std::uint64_t series_flush_bytes() const {
+    std::uint64_t b = 64 * 1024;  // superblock, group heaps and B-trees, free-space slack
+    for (const Series& s : series) {
+      const std::uint64_t rows = chunk_rows_for(s.width);
+      const std::uint64_t chunk = rows * static_cast<std::uint64_t>(s.width) * 8;
+      if (!s.dset.valid()) b += 8192;  // object header, attributes, index (its chunk is counted below)
+      const std::uint64_t chunks = ceil_div(s.rows_total, rows) - ceil_div(s.rows_written, rows);
+      b += chunks * (chunk + 4096);  // each chunk and its share of a B-tree node
+    }
+    return b;
+  }
+
+  std::string no_space_text(int err) const {
+    return "no space left for the output file '" + path + "' (" + std::strerror(err) +
+           "); it holds the output up to the last complete flush";
+  }
+
+  /// Makes sure `bytes` more can be written past the file's end before HDF5 writes anything
+  /// (serial files): on a full disk (ENOSPC) or at the file size limit (EFBIG) throws the
+  /// "no space" error with the file still as the last complete flush left it. MPI-IO files
+  /// are not checked (no descriptor).
+  void reserve(std::uint64_t bytes) {
+    if (parallel() || !file.valid()) return;
+    void* handle = nullptr;
+    haddr_t eoa = 0;
+    if (H5Fget_vfd_handle(file.get(), H5P_DEFAULT, &handle) < 0 || handle == nullptr ||
+        H5Fget_eoa(file.get(), &eoa) < 0) {
+      h5::error_stack_text();  // (cleared) no reservation possible: write and see
+      return;
+    }
+    const int fd = *static_cast<int*>(handle);
+    // From the end of what is on disk when HDF5 has allocated space it has not written yet.
+    struct stat st {};
+    const haddr_t from = ::fstat(fd, &st) == 0 ? std::min<haddr_t>(eoa, static_cast<haddr_t>(st.st_size)) : eoa;
+    const int rc = ::posix_fallocate(fd, static_cast<off_t>(from), static_cast<off_t>(eoa - from + bytes));
+    if (rc == 0 || rc == EINVAL || rc == EOPNOTSUPP) return;  // (file system without it: unchecked)
+    write_failed = true;
+    // posix_fallocate may have extended the file partly: back to what HDF5 allocated.
+    if (::ftruncate(fd, static_cast<off_t>(eoa)) != 0) { /* the tail past EOA is ignored by readers */ }
+    throw std::runtime_error(no_space_text(rc));
+  }
+
+  /// The reserved space past HDF5's end of allocation is given back after a flush.
+  void trim_to_eoa() {
+    if (parallel()) return;
+    void* handle = nullptr;
+    haddr_t eoa = 0;
+    if (H5Fget_vfd_handle(file.get(), H5P_DEFAULT, &handle) < 0 || handle == nullptr ||
+        H5Fget_eoa(file.get(), &eoa) < 0) {
+      h5::error_stack_text();
+      return;
+    }
+    const int fd = *static_cast<int*>(handle);
+    struct stat st {};
+    if (::fstat(fd, &st) == 0 && static_cast<haddr_t>(st.st_size) > eoa &&
+        ::ftruncate(fd, static_cast<off_t>(eoa)) != 0) { /* harmless: readers ignore bytes past EOA */ }
+  }
+
   void flush() {
     if (!file.valid()) throw std::logic_error("hs::io::RunFile::flush: file '" + path + "' is closed");
-    flush_series();
-    check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "H5Fflush", "/");
+    if (write_failed) throw std::runtime_error(no_space_text(ENOSPC));
+    reserve(series_flush_bytes());
+    try {
+      flush_series();
+      check(H5Fflush(file.get(), H5F_SCOPE_LOCAL), "H5Fflush", "/");
+    } catch (const std::runtime_error& e) {
+      write_failed = true;
+      if (mentions_no_space(e.what())) throw std::runtime_error(no_space_text(ENOSPC) + ": " + e.what());
+      throw;
+    }
+    trim_to_eoa();
     if (meta.fsync_on_flush && !parallel()) {  // (MPI-IO: the driver's handle is not a descriptor)
       void* handle = nullptr;
       check(H5Fget_vfd_handle(file.get(), H5P_DEFAULT, &handle), "H5Fget_vfd_handle", "/");
@@ -416,13 +510,14 @@ struct RunFile::Impl {
     if (ec) throw std::runtime_error("cannot rename '" + tmp + "' to '" + xpath + "': " + ec.message());
   }
 
-  void close() {
+  /// `commit`: an explicit close(); with write_to_partial the partial file then replaces the target.
+  void close(bool commit) {
     if (!file.valid()) return;
     std::exception_ptr error;
     try {
       in_snapshot = false;  // an unfinished snapshot is dropped
       pending.clear();
-      flush();
+      if (!write_failed) flush();
     } catch (...) {
       error = std::current_exception();
     }
@@ -433,6 +528,39 @@ struct RunFile::Impl {
     const hid_t id = file.release();  // closed here, with the result checked
     if (H5Fclose(id) < 0 && !error) fail("H5Fclose", "/", path);
     if (error) std::rethrow_exception(error);
+    if (commit && write_failed) throw std::runtime_error(no_space_text(ENOSPC));
+    if (commit && path != target) commit_partial();
+  }
+
+  /// Renames the closed partial file (and its index) over the target. Under MPI rank 0 renames
+  /// and every rank learns the outcome, so all throw or none.
+  void commit_partial() {
+    std::string err;
+    if (series_writer()) {
+      std::error_code ec;
+      std::filesystem::rename(path, target, ec);
+      if (ec) {
+        err = "cannot rename '" + path + "' to '" + target + "': " + ec.message() + "; the output is in '" + path + "'";
+      } else if (meta.write_xdmf) {
+        std::filesystem::remove(xdmf_path, ec);
+        if (snapshots.empty()) {
+          std::filesystem::remove(xdmf_target, ec);  // an index of an older run would name missing data
+        } else {
+          const std::string written = path;
+          path = target;  // the index names the committed file
+          try {
+            write_xdmf_atomic(xdmf_target);
+          } catch (const std::exception& e) {
+            err = e.what();
+          }
+          path = written;
+        }
+      }
+    }
+    if (parallel()) err = meta.comm->broadcast(err);
+    path = target;
+    xdmf_path = xdmf_target;
+    if (!err.empty()) throw std::runtime_error(err);
   }
 
   int add_series(const std::string& path, int width, const std::string& units,
@@ -463,12 +591,18 @@ RunFile::Impl& RunFile::impl() const {
 
 RunFile::RunFile(const std::string& path, RunFileMeta meta) : impl_(std::make_unique<Impl>()) {
   Impl& m = *impl_;
-  m.path = path;
+  m.path = m.target = path;
   m.meta = std::move(meta);
   if (m.meta.write_xdmf) {
-    m.xdmf_path = m.meta.xdmf_path.empty()
-                      ? std::filesystem::path(path).replace_extension(".xmf").string()
-                      : m.meta.xdmf_path;
+    m.xdmf_path = m.xdmf_target = m.meta.xdmf_path.empty()
+                                      ? std::filesystem::path(path).replace_extension(".xmf").string()
+                                      : m.meta.xdmf_path;
+  }
+  if (m.meta.write_to_partial) {  // rank 0 names it; every rank opens the same partial file
+    const std::string id = m.parallel() ? m.meta.comm->broadcast(std::to_string(::getpid()))
+                                        : std::to_string(::getpid());
+    m.path = partial_path(path, id);
+    if (m.meta.write_xdmf) m.xdmf_path = partial_path(m.xdmf_target, id);
   }
   // Errors become exceptions; HDF5 must not print its stack itself.
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
@@ -482,16 +616,17 @@ RunFile::RunFile(const std::string& path, RunFileMeta meta) : impl_(std::make_un
           "/");
   // Lock where the file system can; do not fail where it cannot (some NFS/Lustre mounts).
   m.check(H5Pset_file_locking(fapl.get(), 1, 1), "H5Pset_file_locking", "/");
-  const hid_t f = H5Fcreate(path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
+  const hid_t f = H5Fcreate(m.path.c_str(), H5F_ACC_TRUNC, H5P_DEFAULT, fapl.get());
   if (f < 0) {
     const std::string detail = h5::error_stack_text();
-    throw InputError(path,
+    throw InputError(m.path,
                      "cannot create the HDF5 output file; check that the directory exists and is "
                      "writable, and that no other program has the file open" +
                          (detail.empty() ? std::string() : " (HDF5: " + detail + ")"));
   }
   m.file = Handle(f, H5Fclose);
   try {
+    m.reserve(m.meta.scene_text.size() + 65536);  // the root attributes
     const hid_t root = m.file.get();
     m.write_string_attr(root, "scene", m.meta.scene_text, "/");
     m.write_string_attr(root, "program_version", m.meta.program_version, "/");
@@ -502,6 +637,10 @@ RunFile::RunFile(const std::string& path, RunFileMeta meta) : impl_(std::make_un
     m.flush();
   } catch (...) {
     m.file.reset();
+    if (m.path != m.target && m.series_writer()) {  // nothing of a run in it: no partial file left
+      std::error_code ec;
+      std::filesystem::remove(m.path, ec);
+    }
     throw;
   }
 }
@@ -509,7 +648,7 @@ RunFile::RunFile(const std::string& path, RunFileMeta meta) : impl_(std::make_un
 RunFile::~RunFile() {
   if (!impl_) return;
   try {
-    impl_->close();
+    impl_->close(false);  // not committed: a partial file keeps its name
   } catch (const std::exception& e) {
     std::fprintf(stderr, "hs::io::RunFile: closing '%s' failed: %s\n", impl_->path.c_str(), e.what());
   }
@@ -679,7 +818,20 @@ void RunFile::end_snapshot() {
                                   std::to_string(rows) + " of its " +
                                   std::to_string(f.global_count) + " rows");
   }
-  m.write_snapshot();
+  if (m.write_failed) throw std::runtime_error(m.no_space_text(ENOSPC));
+  std::uint64_t bytes = m.series_flush_bytes() + 16384;
+  for (const auto& f : m.pending) {
+    bytes += 4096;
+    for (const auto& s : f.slices) bytes += s.bytes.size();
+  }
+  m.reserve(bytes);  // the snapshot's raw data is written by write_snapshot, before the flush
+  try {
+    m.write_snapshot();
+  } catch (const std::runtime_error& e) {
+    m.write_failed = true;
+    if (mentions_no_space(e.what())) throw std::runtime_error(m.no_space_text(ENOSPC) + ": " + e.what());
+    throw;
+  }
   m.in_snapshot = false;
   m.pending.clear();
   m.flush();
@@ -694,11 +846,13 @@ void RunFile::write_xdmf(const std::string& xdmf_path) const {
   m.write_xdmf_atomic(xdmf_path);
 }
 
-void RunFile::close() { impl().close(); }
+void RunFile::close() { impl().close(true); }
 
 bool RunFile::is_open() const { return impl_ && impl_->file.valid(); }
 
-const std::string& RunFile::path() const { return impl().path; }
+const std::string& RunFile::path() const { return impl().target; }
+
+const std::string& RunFile::writing_path() const { return impl().path; }
 
 const std::string& RunFile::xdmf_path() const { return impl().xdmf_path; }
 

@@ -28,6 +28,8 @@
 //   datasets or attributes after H5Fstart_swmr_write, and every snapshot is a new group.
 //   The file uses the HDF5 1.8 format (libver bounds V18..V18): readable by any HDF5 >= 1.8,
 //   no superblock status flags, attributes larger than 64 KiB allowed.
+//   With RunFileMeta::write_to_partial (hybridsim run) all of this happens in run.partial-<pid>.h5,
+//   which only an explicit close() renames over run.h5 (docs/output.md, "Where the file is written").
 //   While a run has the file open, HDF5 file locking keeps other HDF5 programs out; to peek at a
 //   running simulation use `HDF5_USE_FILE_LOCKING=FALSE h5dump ...` (sees the last flush).
 //
@@ -75,6 +77,11 @@ struct RunFileMeta {
   /// in the same order; series rows come from rank 0, snapshot rows from each rank's slice.
   /// nullptr or a one-rank comm: the plain serial file.
   const par::Comm* comm = nullptr;
+  /// Write to partial_path(path, <pid of rank 0>) (index: partial_path(xdmf_path, ...)) and rename
+  /// it over `path` at a successful close(): an existing file at `path` is replaced only by a
+  /// complete file. A file destroyed without close(), or whose close or a flush failed, keeps its
+  /// partial name (it holds the output up to its last flush). false: write `path` directly.
+  bool write_to_partial = false;
   /// Buffered series data above this many bytes triggers a flush on append.
   std::size_t max_buffered_bytes = std::size_t{64} << 20;
 };
@@ -87,10 +94,20 @@ struct FieldSlice {
   static FieldSlice whole(std::uint64_t n) { return {0, n}; }
 };
 
+/// "dir/run.h5" -> "dir/run.partial-<id>.h5": the name a run writes under until its file is complete
+/// (the extension is kept so that tools still recognise the file).
+std::string partial_path(const std::string& path, const std::string& id);
+
 class RunFile {
  public:
-  /// Creates (truncates) the file and writes the root attributes, then flushes.
-  /// Throws hs::InputError(path, ...) if the file cannot be created.
+  /// Creates (truncates) the file (or, with RunFileMeta::write_to_partial, its partial name) and
+  /// writes the root attributes, then flushes. Throws hs::InputError(path, ...) if the file cannot
+  /// be created.
+  /// Full disk: before HDF5 writes anything (each flush, each snapshot) the space for it is
+  /// reserved (posix_fallocate past the end of allocation, given back after the flush); when that
+  /// fails (ENOSPC, or EFBIG at RLIMIT_FSIZE) flush()/end_snapshot() throw std::runtime_error
+  /// "no space left for the output file '<file>' ...", the file stays as the last complete flush
+  /// left it and is no longer written (close() then only closes it). Serial files only.
   RunFile(const std::string& path, RunFileMeta meta);
   ~RunFile();  ///< close(); errors are reported on stderr, not thrown
   RunFile(RunFile&&) noexcept;
@@ -143,11 +160,15 @@ class RunFile {
   /// Writes an XDMF index of the snapshots written so far to `xdmf_path`; dataset references use
   /// the HDF5 file's name relative to the XDMF file's directory when they share it.
   void write_xdmf(const std::string& xdmf_path) const;
-  /// flush() and close the file. Idempotent.
+  /// flush() and close the file; with write_to_partial, then rename it (and its index) over the
+  /// target. Idempotent. The destructor closes without the rename.
   void close();
 
   bool is_open() const;
+  /// The target path (where the file is after a committed close()).
   const std::string& path() const;
+  /// The file being written: path(), or its partial name until a committed close().
+  const std::string& writing_path() const;
   /// Where the automatic XDMF index goes ("" if RunFileMeta::write_xdmf is false).
   const std::string& xdmf_path() const;
 

@@ -5,14 +5,23 @@
 #include <nlohmann/json.hpp>
 
 #include "analysis/iso19906.h"
+#include "mesh/pier.h"
+#include "mesh/tri_mesh.h"
 
+#include <fcntl.h>
+#include <sys/file.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
+#include <unistd.h>
+
+#include <csignal>
 
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <vector>
 
 namespace fs = std::filesystem;
 using nlohmann::json;
@@ -355,4 +364,175 @@ TEST(CliRidge, BuildsASmallRidgeAndRejectsUnknownKeys) {
   EXPECT_EQ(b.rc, 2);
   EXPECT_NE(b.err.find("/ridge/keel_depht"), std::string::npos) << b.err;
   EXPECT_NE(b.err.find("keel_depth"), std::string::npos) << b.err;
+}
+
+// ---- output safety (issue 14: defects 2, 3, 4, 8) ----
+
+namespace {
+
+std::string read_fd(int fd) {
+  std::string s;
+  char buf[65536];
+  for (off_t at = 0;;) {
+    const ssize_t n = ::pread(fd, buf, sizeof buf, at);
+    if (n <= 0) break;
+    s.append(buf, static_cast<std::size_t>(n));
+    at += n;
+  }
+  return s;
+}
+
+std::vector<fs::path> partial_files(const std::string& stem) {
+  std::vector<fs::path> v;
+  for (const auto& e : fs::directory_iterator(work_dir()))
+    if (e.path().filename().string().rfind(stem + ".partial-", 0) == 0 && e.path().extension() == ".h5")
+      v.push_back(e.path());
+  return v;
+}
+
+}  // namespace
+
+// Defect 2: a result held open (and locked) by a reader is neither truncated nor damaged by a new
+// run to the same path: the new run writes a partial file and renames it over the old one at the end.
+TEST(CliOutput, ResultHeldOpenByAReaderIsNotTruncated) {
+  write("tiny.json", tiny().dump(2));
+  const Result first = hybridsim("run tiny.json -o held.h5");
+  ASSERT_EQ(first.rc, 0) << first.err;
+  const std::string before = slurp(work_dir() / "held.h5");
+  ASSERT_GT(before.size(), 1000u);
+  const int fd = ::open((work_dir() / "held.h5").c_str(), O_RDONLY);
+  ASSERT_GE(fd, 0);
+  ASSERT_EQ(::flock(fd, LOCK_SH | LOCK_NB), 0);  // what an HDF5 reader (h5py, ParaView) holds
+  const Result again = hybridsim("run tiny.json -o held.h5 --set time.duration=0.01");
+  EXPECT_EQ(again.rc, 0) << again.err;  // main: exit 2, after truncating the file to 0 bytes
+  const std::string seen = read_fd(fd);
+  EXPECT_TRUE(seen == before) << "the reader's file changed under it: " << seen.size() << " bytes, was "
+                              << before.size();
+  ::close(fd);
+  EXPECT_GE(rows(work_dir() / "held.h5", "/series/time"), 3u);  // the new, complete result
+  EXPECT_LE(rows(work_dir() / "held.h5", "/series/time"), 4u);
+  EXPECT_TRUE(partial_files("held").empty());
+}
+
+// Defect 3: -o naming the scene (directly or through a symlink) is refused before anything is written.
+TEST(CliOutput, OutputThatIsTheSceneIsRefused) {
+  const std::string scene = tiny().dump(2);
+  write("victim.json", scene);
+  const Result r = hybridsim("run victim.json -o victim.json");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("error: victim.json"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("the scene file"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("-o"), std::string::npos) << r.err;
+  EXPECT_TRUE(slurp(work_dir() / "victim.json") == scene) << "the scene file was overwritten";
+  fs::remove(work_dir() / "link.h5");
+  fs::create_symlink("victim.json", work_dir() / "link.h5");
+  const Result l = hybridsim("victim.json -o link.h5");
+  EXPECT_EQ(l.rc, 2) << l.err;
+  EXPECT_NE(l.err.find("the scene file"), std::string::npos) << l.err;
+  EXPECT_TRUE(slurp(work_dir() / "victim.json") == scene) << "the scene file was overwritten";
+  // The same scene by another spelling of its path.
+  fs::create_directories(work_dir() / "sub");
+  const Result d = hybridsim("victim.json -o sub/../victim.json");
+  EXPECT_EQ(d.rc, 2) << d.err;
+  EXPECT_TRUE(slurp(work_dir() / "victim.json") == scene) << "the scene file was overwritten";
+}
+
+// Defect 8 (path half) and the same check for `run`: a missing output directory is reported
+// before the ridge generation (or the build) starts.
+TEST(CliOutput, MissingOutputDirectoryIsRefusedBeforeTheWork) {
+  write("ridge.json", R"({"name": "small", "ridge": {
+      "level_ice_thickness": 0.2, "consolidated_layer_thickness": 0.3, "consolidated_layer_width": 2.0,
+      "keel_depth": 2.0, "shoulder_slope_deg": 30, "sail_height": 0.4, "length": 3.0,
+      "block_thickness": 0.2, "seed": 11, "settle": {"max_time": 40}}})");
+  const Result r = hybridsim("ridge ridge.json -o no/such/dir/r.h5");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("no/such/dir"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("does not exist"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("[ridge]"), std::string::npos) << "the generation ran first:\n" << r.err;
+  write("tiny.json", tiny().dump(2));
+  const Result run = hybridsim("run tiny.json -o no/such/dir/out.h5");
+  EXPECT_EQ(run.rc, 2) << run.err;
+  EXPECT_NE(run.err.find("does not exist"), std::string::npos) << run.err;
+  EXPECT_EQ(run.err.find("particles"), std::string::npos) << "the scene was built first:\n" << run.err;
+  fs::create_directories(work_dir() / "sub");
+  const Result dir = hybridsim("run tiny.json -o sub");
+  EXPECT_EQ(dir.rc, 2) << dir.err;
+  EXPECT_NE(dir.err.find("is a directory"), std::string::npos) << dir.err;
+}
+
+// Defect 4: the disk fills during the run (here: the file size limit, RLIMIT_FSIZE with SIGXFSZ
+// ignored, which gives EFBIG like ENOSPC and needs no mount). Exit 1 naming the file and
+// "no space", no crash, and the file opens with the series and snapshots of the last complete flush.
+TEST(CliOutput, FullDiskEndsWithExitOneAndAReadableFile) {
+  write("tiny.json", tiny().dump(2));
+  for (const auto& p : partial_files("full")) fs::remove(p);
+  // (built before the fork: work_dir() is named by the pid)
+  const std::string cmd = "cd '" + work_dir().string() + "' && '" HYBRIDSIM_EXE
+                          "' run tiny.json -o full.h5 --set time.duration=0.3 > full_out.txt 2> full_err.txt";
+  const pid_t pid = ::fork();
+  ASSERT_GE(pid, 0);
+  if (pid == 0) {
+    ::signal(SIGXFSZ, SIG_IGN);
+    const rlimit lim{900000, 900000};  // bytes; the whole run writes 959200 bytes of HDF5
+    ::setrlimit(RLIMIT_FSIZE, &lim);
+    const int st = std::system(cmd.c_str());
+    ::_exit(WIFEXITED(st) ? WEXITSTATUS(st) : 100);
+  }
+  int status = 0;
+  ASSERT_EQ(::waitpid(pid, &status, 0), pid);
+  ASSERT_TRUE(WIFEXITED(status));
+  const std::string err = slurp(work_dir() / "full_err.txt");
+  EXPECT_EQ(WEXITSTATUS(status), 1) << err;  // main: 139 (SIGSEGV in HDF5's exit handler)
+  EXPECT_NE(err.find("no space"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(work_dir() / "full.h5"));  // never committed
+  const auto partial = partial_files("full");
+  ASSERT_EQ(partial.size(), 1u) << err;
+  EXPECT_NE(err.find(partial[0].filename().string()), std::string::npos) << err;
+  const std::uint64_t n = rows(partial[0], "/series/time");
+  EXPECT_GE(n, 2u);   // measured: 29 rows and 15 snapshots of the 61 and 31 of the whole run
+  EXPECT_LT(n, 61u);  // the whole run would have 61
+  EXPECT_GE(rows(partial[0], "/snapshots/times"), 1u);
+  EXPECT_EQ(rows(partial[0], "/series/force"), n);
+  fs::remove(partial[0]);
+  fs::remove(fs::path(partial[0]).replace_extension(".xmf"));
+}
+
+// Defect 3, the other inputs: -o naming the structure mesh (by a hard link) or the ridge file is
+// refused before anything is written; both inputs stay as they were.
+TEST(CliOutput, OutputThatIsTheMeshOrTheRidgeFileIsRefused) {
+  hs::mesh::PierParams pp;
+  pp.waterline_diameter = 2.0;
+  pp.cone_top_z = 0.5;
+  pp.cone_bottom_z = -1.0;
+  pp.neck_height = 0.5;
+  pp.shaft_diameter = 1.5;
+  pp.shaft_bottom_z = -3.0;
+  pp.segments = 16;
+  fs::create_directories(work_dir() / "meshes");
+  hs::mesh::write_stl_ascii(hs::mesh::make_pier(pp), (work_dir() / "meshes" / "p.stl").string());
+  const std::string stl = slurp(work_dir() / "meshes" / "p.stl");
+  json j = tiny();
+  j["structure"] = {{"type", "mesh"}, {"mesh", "meshes/p.stl"}, {"position", {-5, 0, 0}}};
+  write("with_mesh.json", j.dump());
+  fs::remove(work_dir() / "hard.h5");
+  fs::create_hard_link(work_dir() / "meshes" / "p.stl", work_dir() / "hard.h5");
+  const Result m = hybridsim("run with_mesh.json -o hard.h5");
+  EXPECT_EQ(m.rc, 2) << m.err;
+  EXPECT_NE(m.err.find("the structure mesh"), std::string::npos) << m.err;
+  EXPECT_TRUE(slurp(work_dir() / "meshes" / "p.stl") == stl) << "the mesh was overwritten";
+
+  write("r.json", R"({"name": "r", "ridge": {
+      "level_ice_thickness": 0.2, "consolidated_layer_thickness": 0.3, "consolidated_layer_width": 2.0,
+      "keel_depth": 2.0, "shoulder_slope_deg": 30, "sail_height": 0.4, "length": 3.0,
+      "block_thickness": 0.2, "seed": 11, "settle": {"max_time": 40}}})");
+  ASSERT_EQ(hybridsim("ridge r.json -o r_ridge.h5").rc, 0);
+  EXPECT_TRUE(partial_files("r_ridge").empty());  // written as r_ridge.partial-<pid>.h5, then renamed
+  const std::string ridge = slurp(work_dir() / "r_ridge.h5");
+  json b = tiny();
+  b["blocks"] = {{"ridge_file", "r_ridge.h5"}, {"conversion", "never"}};
+  write("with_ridge.json", b.dump());
+  const Result r = hybridsim("run with_ridge.json -o ./r_ridge.h5");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("the ridge file"), std::string::npos) << r.err;
+  EXPECT_TRUE(slurp(work_dir() / "r_ridge.h5") == ridge) << "the ridge file was overwritten";
 }

@@ -512,3 +512,68 @@ TEST_F(RunFileTest, MoveKeepsTheFileOpen) {
   H5File f(path);
   EXPECT_EQ(read_all<double>(f.id, "/series/x", H5T_NATIVE_DOUBLE), (std::vector<double>{4.0}));
 }
+
+// Output safety (issue 14): with write_to_partial an existing file is replaced only by a closed,
+// complete file; a RunFile destroyed without close() (an abandoned run) leaves the old file and
+// its index untouched and keeps its data under the partial name.
+TEST_F(RunFileTest, PartialFileReplacesTheTargetOnlyAtClose) {
+  const std::string target = file("run.h5");
+  std::ofstream(target) << "old result";
+  std::ofstream(file("run.xmf")) << "old index";
+  RunFileMeta m = meta();
+  m.write_to_partial = true;
+  const auto pos = rows(0, 4, 3);
+  std::string partial;
+  {
+    RunFile rf(target, m);
+    partial = rf.writing_path();
+    EXPECT_EQ(rf.path(), target);
+    EXPECT_EQ(partial, hs::io::partial_path(target, std::to_string(::getpid())));
+    EXPECT_EQ(fs::path(partial).filename().string(), "run.partial-" + std::to_string(::getpid()) + ".h5");
+    const int s = rf.add_series("/series/x", 1, "m", "x");
+    const double v = 2.5;
+    rf.append(s, &v);
+    rf.begin_snapshot(0.5, 3);
+    rf.write_field("position", pos.data(), 4, 3, "m");
+    rf.end_snapshot();
+    EXPECT_EQ(slurp(target), "old result");
+    EXPECT_EQ(slurp(file("run.xmf")), "old index");
+  }  // destroyed without close(): abandoned
+  EXPECT_EQ(slurp(target), "old result");
+  EXPECT_EQ(slurp(file("run.xmf")), "old index");
+  {
+    H5File f(partial);
+    ASSERT_GE(f.id, 0);
+    EXPECT_EQ(read_all<double>(f.id, "/series/x", H5T_NATIVE_DOUBLE), (std::vector<double>{2.5}));
+  }
+  const std::string partial_index = (fs::path(partial).replace_extension(".xmf")).string();
+  EXPECT_NE(slurp(partial_index).find(fs::path(partial).filename().string() + ":/snapshots/000000/position"),
+            std::string::npos);
+  fs::remove(partial);
+  fs::remove(partial_index);
+
+  RunFile rf(target, m);
+  const int s = rf.add_series("/series/x", 1, "m", "x");
+  const double v = 7.0;
+  rf.append(s, &v);
+  rf.begin_snapshot(0.5, 3);
+  rf.write_field("position", pos.data(), 4, 3, "m");
+  rf.end_snapshot();
+  rf.close();
+  EXPECT_EQ(rf.writing_path(), target);
+  EXPECT_FALSE(fs::exists(partial));
+  EXPECT_FALSE(fs::exists(partial_index));
+  H5File f(target);
+  ASSERT_GE(f.id, 0);
+  EXPECT_EQ(read_all<double>(f.id, "/series/x", H5T_NATIVE_DOUBLE), (std::vector<double>{7.0}));
+  const std::string x = slurp(file("run.xmf"));  // the index now names the committed file
+  EXPECT_TRUE(well_formed_xml(x));
+  EXPECT_NE(x.find(">run.h5:/snapshots/000000/position"), std::string::npos) << x;
+}
+
+// Without write_to_partial (the default) the file is written in place, as before.
+TEST_F(RunFileTest, WithoutPartialTheTargetIsWrittenInPlace) {
+  RunFile rf(file("direct.h5"), meta());
+  EXPECT_EQ(rf.writing_path(), file("direct.h5"));
+  EXPECT_TRUE(fs::exists(file("direct.h5")));
+}
