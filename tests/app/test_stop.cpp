@@ -79,8 +79,10 @@ Child start(const std::string& tag, const std::string& args) {
 /// Waits until the run has printed its setup line (the loop is about to start), then `seconds`.
 void let_it_run(const Child& c, double seconds) {
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  while (c.err().find("steps to t =") == std::string::npos && std::chrono::steady_clock::now() < until)
+  for (std::string e = c.err(); e.find("steps to t =") == std::string::npos; e = c.err()) {
+    if (e.find("error") != std::string::npos || std::chrono::steady_clock::now() > until) return;  // failed early
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
   std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
 }
 
