@@ -58,17 +58,18 @@ json long_scene() {
   })");
 }
 
-/// `hybridsim <args>` started in the work directory (stdout/stderr to <tag>.out/.err).
+/// `hybridsim <args>` started in the work directory (stdout/stderr to <tag>.out/.err), after
+/// `launcher` (e.g. mpirun and its options) if given.
 struct Child {
   pid_t pid = -1;
   std::string tag;
   std::string err() const { return slurp(work_dir() / (tag + ".err")); }
 };
 
-Child start(const std::string& tag, const std::string& args) {
+Child start(const std::string& tag, const std::string& args, const std::string& launcher = "") {
   const fs::path d = work_dir();
-  const std::string cmd = "cd '" + d.string() + "' && exec '" HYBRIDSIM_EXE "' " + args + " > " + tag + ".out 2> " +
-                          tag + ".err";
+  const std::string cmd = "cd '" + d.string() + "' && exec " + launcher + "'" HYBRIDSIM_EXE "' " + args + " > " +
+                          tag + ".out 2> " + tag + ".err";
   Child c;
   c.tag = tag;
   const char* argv[] = {"/bin/sh", "-c", cmd.c_str(), nullptr};
@@ -76,11 +77,15 @@ Child start(const std::string& tag, const std::string& args) {
   return c;
 }
 
-/// Waits until the run has printed its setup line (the loop is about to start), then `seconds`.
+/// Waits until the run has printed its setup line (the loop is about to start), then `seconds`;
+/// returns at once if the child has already ended (it is left to wait_for to reap).
 void let_it_run(const Child& c, double seconds) {
   const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(60);
-  for (std::string e = c.err(); e.find("steps to t =") == std::string::npos; e = c.err()) {
-    if (e.find("error") != std::string::npos || std::chrono::steady_clock::now() > until) return;  // failed early
+  while (c.err().find("steps to t =") == std::string::npos) {
+    siginfo_t info{};
+    if (waitid(P_PID, static_cast<id_t>(c.pid), &info, WEXITED | WNOHANG | WNOWAIT) == 0 && info.si_pid == c.pid)
+      return;
+    if (std::chrono::steady_clock::now() > until) return;
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
   std::this_thread::sleep_for(std::chrono::duration<double>(seconds));
@@ -211,6 +216,36 @@ TEST(Stop, KillNineAfterTheWallClockFlushLeavesTheRowsFlushed) {
   const auto step = read(work_dir() / "kill.h5", "/series/step");
   ASSERT_GT(step.size(), 1u) << "more than the t = 0 row survives\n" << c.err();
   expect_contiguous_rows(work_dir() / "kill.h5", -1);
+}
+
+// (1b) Under MPI: SIGTERM reaches one rank only (the hardest case for agreement): the ranks agree
+// every 16 steps (one allreduce), all stop after the same step, write the rows up to it and
+// exit 143, so mpirun exits 143 too.
+TEST(Stop, SigtermToOneMpiRankStopsAllRanksAtTheSameStep) {
+  write("long.json", long_scene().dump());
+  fs::remove(work_dir() / "mpi.h5");
+  // (allowed as root in CI containers; waiting ranks yield the core, as tests/CMakeLists.txt)
+  const std::string mpirun = "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+                             "OMPI_MCA_mpi_yield_when_idle=1 '" HYBRIDSIM_MPIEXEC "' -np 2 --oversubscribe --bind-to none ";
+  // --flush-interval 0.5: flushes decided collectively on the way
+  const Child c = start("mpi", "long.json -o mpi.h5 --flush-interval 0.5", mpirun);
+  ASSERT_GT(c.pid, 0);
+  let_it_run(c, 2.0);
+  // mpirun's children are the ranks; signal the last one only.
+  FILE* ps = ::popen(("ps -o pid= --ppid " + std::to_string(c.pid)).c_str(), "r");
+  ASSERT_NE(ps, nullptr);
+  std::vector<pid_t> ranks;
+  for (long p = 0; std::fscanf(ps, "%ld", &p) == 1;) ranks.push_back(static_cast<pid_t>(p));
+  ::pclose(ps);
+  ASSERT_EQ(ranks.size(), 2u) << c.err();
+  ::kill(ranks.back(), SIGTERM);
+  const int rc = wait_for(c);
+  const std::string err = c.err();
+  ASSERT_EQ(rc, 143) << err;
+  const long long k = number_after(err, "after step");
+  ASSERT_GT(k, 0) << err;
+  EXPECT_EQ(k % 16, 0) << "the ranks decide every 16 steps";
+  expect_contiguous_rows(work_dir() / "mpi.h5", k);
 }
 
 // (4) An unstable run (exit 3) ends with a snapshot of its last good step, whether or not the scene
