@@ -1,5 +1,6 @@
 // hybridsim command line.
-//   hybridsim scene.json [-o out.h5] [--set path=value]...   (same as `hybridsim run ...`)
+//   hybridsim scene.json [-o out.h5] [--set path=value]... [--flush-interval S] [--fsync]
+//                                                             (same as `hybridsim run ...`)
 //   hybridsim check scene.json [--set path=value]...          validate, print derived figures
 //   hybridsim iso FILE.json                                   ISO 19906 estimate as JSON
 //   hybridsim bench NAME                                      built-in benchmark (JSON line)
@@ -7,7 +8,8 @@
 //   hybridsim --version
 //   mpirun -np N hybridsim scene.json ...                     the same run on N ranks (one output file)
 // Exit codes: 0 ok, 1 internal error, 2 bad input (hs::InputError), 3 simulation unstable
-// (hs::SimulationError; the output written so far is kept).
+// (hs::SimulationError; the output written so far and the last good state are kept),
+// 130 / 143 stopped by SIGINT / SIGTERM (the step finished, the file written and closed).
 // Under mpirun every rank runs the command; rank 0 alone prints (a rank with an error of its own
 // prints it too). MPI is initialised only when an MPI launcher started the process.
 #include "app/bench.h"
@@ -53,7 +55,14 @@ int main(int argc, char** argv) {
   std::string bench_name;
   auto add_common = [&](CLI::App* a, bool with_output) {
     a->add_option("scene", opt.scene_path, "scene file (JSON, see docs/scene.md)");
-    if (with_output) a->add_option("-o,--output", opt.output, "output HDF5 file (default: <name>.h5 of the scene)");
+    if (with_output) {
+      a->add_option("-o,--output", opt.output, "output HDF5 file (default: <name>.h5 of the scene)");
+      a->add_option("--flush-interval", opt.flush_interval,
+                    "wall-clock seconds between writes of the series to the file (default 60); what a killed "
+                    "run keeps (docs/output.md)")
+          ->check(CLI::PositiveNumber);
+      a->add_flag("--fsync", opt.fsync, "fsync the output file after every flush (survives a machine crash)");
+    }
     a->add_option("--set", opt.overrides,
                   "override a scene field, e.g. --set ice.thickness=0.9 (value parsed as JSON, else a string); "
                   "repeatable")

@@ -7,6 +7,7 @@
 #include "app/output_path.h"
 #include "app/progress.h"
 #include "app/run_summary.h"
+#include "app/stop_signal.h"
 #include "app/text.h"
 #include "bonded/engine.h"
 #include "common/error.h"
@@ -34,14 +35,55 @@ void print_warnings(const std::vector<std::string>& warnings, std::FILE* err) {
   for (const auto& w : warnings) std::fprintf(err, "warning: %s\n", w.c_str());
 }
 
-io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm) {
+io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm, bool fsync) {
   io::RunFileMeta meta;
   meta.write_to_partial = true;  // an existing result is replaced only by a run that closed its file
+  meta.fsync_on_flush = fsync;
   meta.scene_text = s.json.dump(2);
   meta.program_version = HYBRIDSIM_VERSION;
   meta.comm = &comm;
   return meta;
 }
+
+/// Under MPI the ranks agree every this many steps whether to flush or stop (one allreduce of
+/// two doubles; docs/output.md gives the measured cost). Serial runs look every step.
+constexpr std::uint64_t kMpiPollSteps = 16;
+
+/// What the ranks decided after a step: flush the file now, stop (the signal) or go on.
+struct PollResult {
+  bool flush = false;
+  int stop = 0;
+};
+
+/// The loop's look at the world outside the simulation after step k: a SIGINT/SIGTERM received,
+/// or the wall-clock flush interval passed. Under MPI both are agreed collectively (max over the
+/// ranks) every kMpiPollSteps steps, so every rank flushes and stops after the same step and no
+/// rank is left waiting in a collective.
+class LoopPoll {
+ public:
+  LoopPoll(const par::Comm& comm, double flush_interval)
+      : comm_(comm), every_(comm.parallel() ? kMpiPollSteps : 1), interval_(flush_interval),
+        last_flush_(Clock::now()) {}
+  PollResult after_step(std::uint64_t k, std::uint64_t total) {
+    if (k % every_ != 0 && k != total) return {};
+    const auto now = Clock::now();
+    double v[2] = {static_cast<double>(signals_.received()),
+                   std::chrono::duration<double>(now - last_flush_).count() >= interval_ ? 1.0 : 0.0};
+    if (comm_.parallel()) comm_.max(v, 2);
+    PollResult r;
+    r.stop = static_cast<int>(v[0]);
+    r.flush = v[1] > 0.0;
+    if (r.flush) last_flush_ = now;
+    return r;
+  }
+
+ private:
+  const par::Comm& comm_;
+  StopSignals signals_;  // installed for the loop only: before it there is nothing to save
+  std::uint64_t every_;
+  double interval_;
+  Clock::time_point last_flush_;
+};
 
 /// Rough resident memory of the engine for n particles and b bonds.
 double memory_estimate_bytes(std::size_t n, std::size_t bonds, std::size_t walls) {
@@ -132,27 +174,50 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const auto t_setup = Clock::now();
   sim::Simulation sim = sim::build_simulation(s, comm);
   print_warnings(sim.warnings(), progress);
-  io::RunFile file(out_path, run_file_meta(s, comm));
+  io::RunFile file(out_path, run_file_meta(s, comm, opt.fsync));
   sim::Recorders rec(sim, s, comm);
   rec.declare(file);
   const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);
 
-  // 3. loop: step, then the recorders (per-step sums; rows and snapshots when due)
+  // 3. loop: step, then the recorders (per-step sums; rows and snapshots when due), then the
+  // poll: a wall-clock flush when due, a graceful stop on SIGINT/SIGTERM
   const auto t0 = Clock::now();
   const std::uint64_t steps = sim.schedule().total_steps;
   ProgressLine bar(progress, s.time.duration, steps);
+  int stop = 0;           // the signal that stopped the run, 0 if none
+  std::uint64_t last = 0;  // the last step completed
   try {
+    LoopPoll poll(comm, opt.flush_interval);
     rec.write_initial(sim, file);  // row 0: the initial state
     file.flush();
     for (std::uint64_t k = 1; k <= steps; ++k) {
       sim.step();                    // particles one DEM step; blocks every rigid step
       rec.after_step(k, sim, file);  // sums and peaks; rows and snapshots when due
       bar.update(k, sim.engine());   // progress line
+      last = k;
+      const PollResult p = poll.after_step(k, steps);
+      if (p.stop) {  // finish here: the rows (and snapshot) of this step, then close below
+        stop = p.stop;
+        rec.write_stop(k, sim, file);
+        break;
+      }
+      if (p.flush) file.flush();
     }
   } catch (const SimulationError&) {
     bar.end();
-    file.close();  // keep what was written so far (collective: every rank saw the same error)
-    std::fprintf(progress, "hybridsim: output up to t = %g s kept in %s\n", sim.engine().time(), out_path.c_str());
+    // The failed step's state is not written; the last completed one is, as a snapshot (collective:
+    // every rank saw the same error). Then close, keeping what was written so far.
+    std::string kept;
+    try {
+      const std::uint64_t good = rec.write_last_good(file);
+      kept = ", and the last good state (step " + std::to_string(good) + ", t = " +
+             sci(rec.last_good_time(), 6) + " s) as snapshot " + std::to_string(file.snapshot_count() - 1);
+    } catch (const std::exception& ex) {
+      std::fprintf(progress, "hybridsim: could not write the last good state: %s\n", ex.what());
+    }
+    file.close();
+    std::fprintf(progress, "hybridsim: series rows up to the last output before t = %g s%s kept in %s\n",
+                 sim.engine().time(), kept.c_str(), out_path.c_str());
     throw;
   } catch (const std::exception& ex) {
     if (!comm.parallel()) throw;
@@ -165,6 +230,19 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   bar.end();
   file.close();
   const double wall = seconds_since(t0);
+  if (stop) {
+    const double t = sim.engine().time();
+    std::fprintf(progress,
+                 "hybridsim: stopped by %s after step %llu of %llu (t = %s s of %g s, %.1f s wall). Series rows up "
+                 "to t = %s s%s are in %s (closed); no /analysis was written.\n"
+                 "hybridsim: a stopped run cannot be resumed yet (checkpoint/restart is issue 14): run the scene "
+                 "again for the full result. Exit code %d.\n",
+                 signal_name(stop), static_cast<unsigned long long>(last), static_cast<unsigned long long>(steps),
+                 sci(t, 6).c_str(), s.time.duration, wall, sci(t, 6).c_str(),
+                 sim.schedule().snapshot_every ? " and a snapshot of that step" : "", out_path.c_str(),
+                 stopped_exit_code(stop));
+    return stopped_exit_code(stop);
+  }
 
   // 4. report: pieces, ISO beside the run, the hybrid outcome -> /analysis and the summary
   const sim::RunFigures fig = rec.figures();

@@ -18,7 +18,14 @@ struct RunOptions {
   std::string scene_path;
   std::string output;                  ///< -o; empty: the scene's "output" ("<name>.h5")
   std::vector<std::string> overrides;  ///< --set path=value, in order
+  /// --flush-interval: wall-clock seconds between flushes of the series (and of anything else
+  /// buffered) to the file, whether or not snapshots are on; > 0.
+  double flush_interval = 60.0;
+  bool fsync = false;  ///< --fsync: fsync(2) after every flush (serial; MPI-IO syncs itself)
 };
+
+/// Exit code of a run stopped by SIGINT/SIGTERM: 128 + the signal (130, 143).
+inline int stopped_exit_code(int sig) { return 128 + sig; }
 
 /// Assumed throughput for run-time estimates (one core, Release).
 inline constexpr double kParticleStepsPerSecond = 3e6;
@@ -26,8 +33,11 @@ inline constexpr double kParticleStepsPerSecond = 3e6;
 /// Loads, builds and runs the scene, writing the HDF5 run file. Under MPI every rank calls this
 /// (collective); each builds the scene, keeps its share, and all write the one file. Progress goes to `progress`
 /// (a single updating line when it is a terminal, a log line every ~10 s otherwise), the
-/// summary to `out`. Returns 0; throws hs::InputError (bad input, nothing run) and
-/// hs::SimulationError (unstable; the output written so far is flushed and closed first).
+/// summary to `out`. Returns 0, or 128 + signal when SIGINT/SIGTERM stopped the run (the step
+/// under way is finished, the rows up to it and a final snapshot, if snapshots are on, written,
+/// the file closed; no /analysis). Throws hs::InputError (bad input, nothing run) and
+/// hs::SimulationError (unstable; the output written so far and a snapshot of the last good
+/// step are flushed and closed first).
 int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress);
 
 /// Loads and builds the scene and prints the derived figures (counts, dt, estimates).

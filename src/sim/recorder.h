@@ -55,15 +55,29 @@ class Recorder {
 class Recorders {
  public:
   Recorders(const Simulation& sim, const scene::Scene& s, const par::Comm& comm);
+  ~Recorders();
   void declare(io::RunFile& file);
   /// Row 0: the initial state (forces are zero until the first step).
   void write_initial(Simulation& sim, io::RunFile& file);
-  /// After DEM step k: every recorder accumulates, then those due write their row.
+  /// After DEM step k: every recorder accumulates, then those due write their row; the state
+  /// of step k is kept as the last good one.
   void after_step(std::uint64_t k, Simulation& sim, io::RunFile& file);
+  /// The run stops early after step k (SIGINT/SIGTERM): every recorder not due at k writes its
+  /// row now (the mean over the steps since its last row), the snapshot recorder its snapshot,
+  /// so the file ends at step k as a finished run ends at its last step.
+  void write_stop(std::uint64_t k, Simulation& sim, io::RunFile& file);
+  /// After a step failed (SimulationError, collective): writes the kept state of the last
+  /// completed step as one more snapshot, whether or not the scene asked for snapshots (the
+  /// failed step's state is not written: it may hold non-finite numbers). Returns its step.
+  std::uint64_t write_last_good(io::RunFile& file);
+  /// Time [s] of the kept last good state.
+  double last_good_time() const;
   RunFigures figures() const;
 
  private:
+  class LastGood;
   std::vector<std::unique_ptr<Recorder>> list_;
+  std::unique_ptr<LastGood> last_good_;
 };
 
 /// The list: every recorder of a run with this simulation and scene (recorders.cpp).
