@@ -163,6 +163,44 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   return 0;
 }
 
+namespace {
+
+/// After an instability (SimulationError, seen alike on every rank): writes the last completed
+/// step as a snapshot (the failed step's state is not written) and closes the file.
+void keep_last_good_and_close(const sim::Simulation& sim, sim::Recorders& rec, io::RunFile& file,
+                              const std::string& out_path, std::FILE* progress) {
+  std::string kept;
+  try {
+    const std::uint64_t good = rec.write_last_good(file);
+    kept = ", and the last good state (step " + std::to_string(good) + ", t = " +
+           sci(rec.last_good_time(), 6) + " s) as snapshot " + std::to_string(file.snapshot_count() - 1);
+  } catch (const std::exception& ex) {
+    std::fprintf(progress, "hybridsim: could not write the last good state: %s\n", ex.what());
+  }
+  file.close();
+  std::fprintf(progress, "hybridsim: series rows up to the last output before t = %g s%s kept in %s\n",
+               sim.engine().time(), kept.c_str(), out_path.c_str());
+}
+
+/// A run stopped by SIGINT/SIGTERM after step `last`: says what was kept and returns 128 + signal.
+int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const sim::Simulation& sim, double wall,
+                   const std::string& out_path, std::FILE* progress) {
+  const std::uint64_t steps = sim.schedule().total_steps;
+  const double t = sim.engine().time();
+  std::fprintf(progress,
+               "hybridsim: stopped by %s after step %llu of %llu (t = %s s of %g s, %.1f s wall). Series rows up "
+               "to t = %s s%s are in %s (closed); no /analysis was written.\n"
+               "hybridsim: a stopped run cannot be resumed yet (checkpoint/restart is issue 14): run the scene "
+               "again for the full result. Exit code %d.\n",
+               signal_name(stop), static_cast<unsigned long long>(last), static_cast<unsigned long long>(steps),
+               sci(t, 6).c_str(), s.time.duration, wall, sci(t, 6).c_str(),
+               sim.schedule().snapshot_every ? " and a snapshot of that step" : "", out_path.c_str(),
+               stopped_exit_code(stop));
+  return stopped_exit_code(stop);
+}
+
+}  // namespace
+
 int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const par::Comm& comm = opt.comm ? *opt.comm : par::serial();
   // 1. load: the scene file, --set overrides applied, validated
@@ -205,19 +243,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     }
   } catch (const SimulationError&) {
     bar.end();
-    // The failed step's state is not written; the last completed one is, as a snapshot (collective:
-    // every rank saw the same error). Then close, keeping what was written so far.
-    std::string kept;
-    try {
-      const std::uint64_t good = rec.write_last_good(file);
-      kept = ", and the last good state (step " + std::to_string(good) + ", t = " +
-             sci(rec.last_good_time(), 6) + " s) as snapshot " + std::to_string(file.snapshot_count() - 1);
-    } catch (const std::exception& ex) {
-      std::fprintf(progress, "hybridsim: could not write the last good state: %s\n", ex.what());
-    }
-    file.close();
-    std::fprintf(progress, "hybridsim: series rows up to the last output before t = %g s%s kept in %s\n",
-                 sim.engine().time(), kept.c_str(), out_path.c_str());
+    keep_last_good_and_close(sim, rec, file, out_path, progress);
     throw;
   } catch (const std::exception& ex) {
     if (!comm.parallel()) throw;
@@ -230,19 +256,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   bar.end();
   file.close();
   const double wall = seconds_since(t0);
-  if (stop) {
-    const double t = sim.engine().time();
-    std::fprintf(progress,
-                 "hybridsim: stopped by %s after step %llu of %llu (t = %s s of %g s, %.1f s wall). Series rows up "
-                 "to t = %s s%s are in %s (closed); no /analysis was written.\n"
-                 "hybridsim: a stopped run cannot be resumed yet (checkpoint/restart is issue 14): run the scene "
-                 "again for the full result. Exit code %d.\n",
-                 signal_name(stop), static_cast<unsigned long long>(last), static_cast<unsigned long long>(steps),
-                 sci(t, 6).c_str(), s.time.duration, wall, sci(t, 6).c_str(),
-                 sim.schedule().snapshot_every ? " and a snapshot of that step" : "", out_path.c_str(),
-                 stopped_exit_code(stop));
-    return stopped_exit_code(stop);
-  }
+  if (stop) return report_stopped(stop, last, s, sim, wall, out_path, progress);
 
   // 4. report: pieces, ISO beside the run, the hybrid outcome -> /analysis and the summary
   const sim::RunFigures fig = rec.figures();
