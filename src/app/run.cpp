@@ -69,7 +69,8 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   for (const auto& w : s.warnings) err << "warning: " << w << "\n";
   // dt is checked last, after the figures that explain it; blocks are counted, not converted.
-  const sim::Simulation sim = sim::build_simulation(s, par::serial(), {.check_dt = false, .convert = false});
+  const sim::Simulation sim = sim::build_simulation(
+      s, par::serial(), {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit});
   for (const auto& w : sim.warnings()) err << "warning: " << w << "\n";
   const sim::Built& b = sim.built();
   const bonded::Engine& e = sim.engine();
@@ -117,7 +118,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   print_warnings(s.warnings, progress);
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
-  sim::Simulation sim = sim::build_simulation(s, comm);
+  sim::Simulation sim = sim::build_simulation(s, comm, {.ignore_memory_limit = opt.ignore_memory_limit});
   print_warnings(sim.warnings(), progress);
   const std::string out_path = opt.output.empty() ? s.output : opt.output;
   io::RunFile file(out_path, run_file_meta(s, comm));

@@ -18,6 +18,7 @@ struct RunOptions {
   std::string scene_path;
   std::string output;                  ///< -o; empty: the scene's "output" ("<name>.h5")
   std::vector<std::string> overrides;  ///< --set path=value, in order
+  bool ignore_memory_limit = false;    ///< --ignore-memory-limit: build even past the memory estimate
 };
 
 /// Assumed throughput for run-time estimates (one core, Release).
