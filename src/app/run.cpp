@@ -19,10 +19,13 @@
 #include <chrono>
 #include <cmath>
 #include <cstdint>
+#include <filesystem>
 
 namespace hs::app {
 
 namespace {
+
+namespace fs = std::filesystem;
 
 using Clock = std::chrono::steady_clock;
 
@@ -61,6 +64,26 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
       << " particles if all converted); conversion \"" << bridge::to_string(hsu.def.mode) << "\"\n";
   out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
       << " DEM steps (stability limit " << sci(r.rigid_dt_limit, 4) << " s)\n";
+}
+
+/// `check` warns (issue 14, item 4) when the estimates pass these limits.
+constexpr double kWarnRunSeconds = 86400.0;                       // one day on one core
+constexpr double kWarnOutputBytes = 10.0 * 1024 * 1024 * 1024;    // 10 GiB
+
+void warn_past_limits(std::ostream& err, double run_seconds, double file_bytes, const std::string& output) {
+  if (run_seconds > kWarnRunSeconds)
+    err << "warning: /time/duration: the run is estimated at " << duration_text(run_seconds)
+        << " on one core (more than a day); check /time/duration, /time/dt and the sheet size, or plan an mpirun\n";
+  std::error_code ec;
+  fs::path dir = fs::absolute(fs::path(output), ec).parent_path();
+  const fs::space_info sp = fs::space(dir, ec);
+  const bool too_big_for_disk = !ec && file_bytes > static_cast<double>(sp.available);
+  if (file_bytes > kWarnOutputBytes || too_big_for_disk)
+    err << "warning: /time/snapshot_interval: the output file is estimated at ~" << sci(file_bytes / 1073741824.0, 3)
+        << " GiB" << (too_big_for_disk ? " (more than the " + sci(sp.available / 1073741824.0, 3) + " GiB free in " +
+                                             dir.string() + ")"
+                                       : std::string(" (more than 10 GiB)"))
+        << "; increase /time/snapshot_interval (snapshots dominate) or /time/output_interval\n";
 }
 
 }  // namespace
@@ -106,6 +129,7 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   out << "estimated time:   " << duration_text(psteps / kParticleStepsPerSecond) << " (" << sci(psteps, 3)
       << " particle-steps at ~" << sci(kParticleStepsPerSecond, 2) << "/s, one core)\n";
   out << "output:           " << (opt.output.empty() ? s.output : opt.output) << "\n";
+  warn_past_limits(err, psteps / kParticleStepsPerSecond, file_bytes, opt.output.empty() ? s.output : opt.output);
   e.check_time_step();  // InputError at /time/dt, after the figures that explain it
   out << "ok\n";
   return 0;

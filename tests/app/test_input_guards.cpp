@@ -336,3 +336,22 @@ TEST(InputGuards, AHugeRidgeIsRefusedBeforeGeneration) {
   EXPECT_TRUE(has(r.err, "--ignore-memory-limit")) << r.err;
   EXPECT_FALSE(fs::exists(work_dir() / "huge_ridge.h5"));
 }
+
+// ---------------------------------------------------------------- item 4: run time and output size
+
+TEST(InputGuards, CheckWarnsAboutRunTimeAndOutputSizePastSensibleLimits) {
+  write("short.json", pier_scene().dump());
+  Result r = hybridsim("check short.json");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_FALSE(has(r.err, "warning: /time/")) << r.err;
+  // 3e5 s at dt = 4.8e-5 s (Eq. 2): 6.3e9 steps of 120 particles, ~3 days on one core; a snapshot every
+  // 1e-3 s: 3e8 snapshots, terabytes.
+  json j = pier_scene();
+  j["time"]["duration"] = 3e5;
+  j["time"]["snapshot_interval"] = 1e-3;
+  write("long_run.json", j.dump());
+  r = hybridsim("check long_run.json");
+  EXPECT_EQ(r.rc, 0) << r.err;  // a warning, not an error
+  EXPECT_TRUE(has(r.err, "warning: /time/duration: the run is estimated at")) << r.err;
+  EXPECT_TRUE(has(r.err, "warning: /time/snapshot_interval: the output file is estimated at")) << r.err;
+}
