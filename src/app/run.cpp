@@ -43,15 +43,6 @@ io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm) {
   return meta;
 }
 
-/// Rough resident memory of the engine for n particles and b bonds.
-double memory_estimate_bytes(std::size_t n, std::size_t bonds, std::size_t walls) {
-  const double per_particle = 5 * sizeof(Vec3) + sizeof(Quat) + 5 * sizeof(double) + sizeof(GlobalId) +
-                              sizeof(bonded::MaterialIndex) + 2 + sizeof(Vec3) /*x at build*/ +
-                              3 * sizeof(std::uint32_t) /*cells*/ + walls * sizeof(Vec3) /*wall history*/ +
-                              32 /*gid index*/ + 4 * sizeof(bonded::ContactPair) /*contacts, assumed*/;
-  return n * per_particle + bonds * (sizeof(bonded::Bond) + 8 /*partner lists*/);
-}
-
 void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Simulation& sim) {
   const auto& hsu = sim.blocks();
   double vol = 0.0;
@@ -124,7 +115,7 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
       << ", critical dt = " << sci(crit, 4) << " s (margin x" << sci(crit / dt, 3) << ")\n";
   out << "steps:            " << sc.total_steps << " for " << s.time.duration << " s; " << rows
       << " series rows, " << snaps << " snapshots\n";
-  out << "estimated memory: " << sci(memory_estimate_bytes(b.particles, b.bonds, s.walls.size()) / 1048576.0, 3)
+  out << "estimated memory: " << sci(sim::engine_memory_bytes(b.particles, b.bonds, s.walls.size()) / 1048576.0, 3)
       << " MiB; output file ~" << sci(file_bytes / 1048576.0, 3) << " MiB\n";
   out << "estimated time:   " << duration_text(psteps / kParticleStepsPerSecond) << " (" << sci(psteps, 3)
       << " particle-steps at ~" << sci(kParticleStepsPerSecond, 2) << "/s, one core)\n";
