@@ -67,6 +67,8 @@ int main(int argc, char** argv) {
                   "override a scene field, e.g. --set ice.thickness=0.9 (value parsed as JSON, else a string); "
                   "repeatable")
         ->allow_extra_args(false);
+    a->add_flag("--ignore-memory-limit", opt.ignore_memory_limit,
+                "build the scene even when its memory estimate exceeds the machine's available memory");
   };
   add_common(&app, true);
   CLI::App* run = app.add_subcommand("run", "run a scene (the default command)");
@@ -82,6 +84,8 @@ int main(int argc, char** argv) {
   std::string ridge_scene, ridge_out;
   ridge->add_option("scene", ridge_scene, "ridge scene file (JSON with a \"ridge\" object)")->required();
   ridge->add_option("-o,--output", ridge_out, "output HDF5 file (default: <name>_ridge.h5)");
+  ridge->add_flag("--ignore-memory-limit", opt.ignore_memory_limit,
+                  "generate even when the estimated block count exceeds the machine's available memory");
   CLI::App* bench = app.add_subcommand("bench", "run a built-in benchmark and print one JSON line");
   bench->add_option("name", bench_name, "benchmark name")->required();
 
@@ -95,7 +99,7 @@ int main(int argc, char** argv) {
   try {
     if (*bench) return hs::app::run_benchmark(bench_name, out, std::cerr, world);
     // Ridge building is serial (a replicated rigid world gains nothing from more ranks): rank 0.
-    if (*ridge) return root ? hs::app::ridge_command(ridge_scene, ridge_out, std::cout) : 0;
+    if (*ridge) return root ? hs::app::ridge_command(ridge_scene, ridge_out, std::cout, opt.ignore_memory_limit) : 0;
     if (opt.scene_path.empty()) {
       std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
       return 2;

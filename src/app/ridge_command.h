@@ -7,7 +7,9 @@
 
 namespace hs::app {
 
-/// Returns the exit code. Throws hs::InputError for a bad scene (exit 2 in main).
-int ridge_command(const std::string& scene_path, const std::string& output, std::ostream& out);
+/// Returns the exit code. Throws hs::InputError for a bad scene (exit 2 in main), and, unless
+/// `ignore_memory_limit`, when rigid::ridge_estimate exceeds the machine's available memory.
+int ridge_command(const std::string& scene_path, const std::string& output, std::ostream& out,
+                  bool ignore_memory_limit = false);
 
 }  // namespace hs::app

@@ -27,6 +27,8 @@ namespace hs::app {
 
 namespace {
 
+namespace fs = std::filesystem;
+
 using Clock = std::chrono::steady_clock;
 
 double seconds_since(Clock::time_point t) { return std::chrono::duration<double>(Clock::now() - t).count(); }
@@ -85,15 +87,6 @@ class LoopPoll {
   Clock::time_point last_flush_;
 };
 
-/// Rough resident memory of the engine for n particles and b bonds.
-double memory_estimate_bytes(std::size_t n, std::size_t bonds, std::size_t walls) {
-  const double per_particle = 5 * sizeof(Vec3) + sizeof(Quat) + 5 * sizeof(double) + sizeof(GlobalId) +
-                              sizeof(bonded::MaterialIndex) + 2 + sizeof(Vec3) /*x at build*/ +
-                              3 * sizeof(std::uint32_t) /*cells*/ + walls * sizeof(Vec3) /*wall history*/ +
-                              32 /*gid index*/ + 4 * sizeof(bonded::ContactPair) /*contacts, assumed*/;
-  return n * per_particle + bonds * (sizeof(bonded::Bond) + 8 /*partner lists*/);
-}
-
 void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Simulation& sim) {
   const auto& hsu = sim.blocks();
   double vol = 0.0;
@@ -116,13 +109,34 @@ void check_run_output(const std::string& out_path, const std::string& scene_path
   check_output_path(out_path, std::filesystem::path(out_path).replace_extension(".xmf").string(), inputs);
 }
 
+/// `check` warns (issue 14, item 4) when the estimates pass these limits.
+constexpr double kWarnRunSeconds = 86400.0;                       // one day on one core
+constexpr double kWarnOutputBytes = 10.0 * 1024 * 1024 * 1024;    // 10 GiB
+
+void warn_past_limits(std::ostream& err, double run_seconds, double file_bytes, const std::string& output) {
+  if (run_seconds > kWarnRunSeconds)
+    err << "warning: /time/duration: the run is estimated at " << duration_text(run_seconds)
+        << " on one core (more than a day); check /time/duration, /time/dt and the sheet size, or plan an mpirun\n";
+  std::error_code ec;
+  fs::path dir = fs::absolute(fs::path(output), ec).parent_path();
+  const fs::space_info sp = fs::space(dir, ec);
+  const bool too_big_for_disk = !ec && file_bytes > static_cast<double>(sp.available);
+  if (file_bytes > kWarnOutputBytes || too_big_for_disk)
+    err << "warning: /time/snapshot_interval: the output file is estimated at ~" << sci(file_bytes / 1073741824.0, 3)
+        << " GiB" << (too_big_for_disk ? " (more than the " + sci(sp.available / 1073741824.0, 3) + " GiB free in " +
+                                             dir.string() + ")"
+                                       : std::string(" (more than 10 GiB)"))
+        << "; increase /time/snapshot_interval (snapshots dominate) or /time/output_interval\n";
+}
+
 }  // namespace
 
 int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   for (const auto& w : s.warnings) err << "warning: " << w << "\n";
   // dt is checked last, after the figures that explain it; blocks are counted, not converted.
-  const sim::Simulation sim = sim::build_simulation(s, par::serial(), {.check_dt = false, .convert = false});
+  const sim::Simulation sim = sim::build_simulation(
+      s, par::serial(), {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit});
   for (const auto& w : sim.warnings()) err << "warning: " << w << "\n";
   const sim::Built& b = sim.built();
   const bonded::Engine& e = sim.engine();
@@ -153,11 +167,12 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
       << ", critical dt = " << sci(crit, 4) << " s (margin x" << sci(crit / dt, 3) << ")\n";
   out << "steps:            " << sc.total_steps << " for " << s.time.duration << " s; " << rows
       << " series rows, " << snaps << " snapshots\n";
-  out << "estimated memory: " << sci(memory_estimate_bytes(b.particles, b.bonds, s.walls.size()) / 1048576.0, 3)
+  out << "estimated memory: " << sci(sim::engine_memory_bytes(b.particles, b.bonds, s.walls.size()) / 1048576.0, 3)
       << " MiB; output file ~" << sci(file_bytes / 1048576.0, 3) << " MiB\n";
   out << "estimated time:   " << duration_text(psteps / kParticleStepsPerSecond) << " (" << sci(psteps, 3)
       << " particle-steps at ~" << sci(kParticleStepsPerSecond, 2) << "/s, one core)\n";
   out << "output:           " << (opt.output.empty() ? s.output : opt.output) << "\n";
+  warn_past_limits(err, psteps / kParticleStepsPerSecond, file_bytes, opt.output.empty() ? s.output : opt.output);
   e.check_time_step();  // InputError at /time/dt, after the figures that explain it
   out << "ok\n";
   return 0;
@@ -210,7 +225,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   check_run_output(out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
-  sim::Simulation sim = sim::build_simulation(s, comm);
+  sim::Simulation sim = sim::build_simulation(s, comm, {.ignore_memory_limit = opt.ignore_memory_limit});
   print_warnings(sim.warnings(), progress);
   io::RunFile file(out_path, run_file_meta(s, comm, opt.fsync));
   sim::Recorders rec(sim, s, comm);

@@ -22,6 +22,7 @@ struct RunOptions {
   /// buffered) to the file, whether or not snapshots are on; > 0.
   double flush_interval = 60.0;
   bool fsync = false;  ///< --fsync: fsync(2) after every flush (serial; MPI-IO syncs itself)
+  bool ignore_memory_limit = false;    ///< --ignore-memory-limit: build even past the memory estimate
 };
 
 /// Exit code of a run stopped by SIGINT/SIGTERM: 128 + the signal (130, 143).

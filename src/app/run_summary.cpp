@@ -76,7 +76,8 @@ void print_pieces_and_iso(std::ostream& out, const sim::RunReport& an, const sim
                                          : 0.5 * (ext[ext.size() / 2 - 1] + ext[ext.size() / 2]);
   out << "  pieces: " << multi << " with >= 2 particles (" << an.pieces.size.size() << " in all), largest "
       << (an.pieces.size.empty() ? 0 : an.pieces.size[0]) << " particles; median extent of broken-off pieces "
-      << sci(median, 4) << " m (" << ext.size() << " pieces); L_c = " << sci(an.L_c, 4) << " m\n";
+      << sci(median, 4) << " m (" << ext.size() << " pieces); "
+      << (an.L_c_note.empty() ? "L_c = " + sci(an.L_c, 4) + " m" : an.L_c_note) << "\n";
   if (an.has_iso) {
     const auto& r = an.iso;
     out << "  ISO 19906 (h = " << sci(an.iso_in.thickness, 4) << " m, h_r = " << sci(f.max_pile, 4)

@@ -4,6 +4,8 @@
 #include "common/error.h"
 #include "io/h5_handle.h"
 
+#include <cmath>
+#include <sstream>
 #include <stdexcept>
 #include <type_traits>
 #include <utility>
@@ -99,6 +101,36 @@ std::vector<T> read_ds(const Ctx& c, hid_t g, const char* name, int width, hsize
   std::vector<T> out(rows * width);
   if (rows > 0) c.ok(H5Dread(ds.get(), mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, out.data()), "H5Dread", name);
   return out;
+}
+
+/// Every value of a dataset read from a ridge file must be finite (and > 0 where `positive`):
+/// InputError naming the dataset, row and column, so a damaged or hand-edited file is refused
+/// when it is read instead of crashing the run at its first step.
+void check_values(const Ctx& c, const std::vector<double>& v, int width, const std::string& dataset,
+                  bool positive = false) {
+  for (std::size_t i = 0; i < v.size(); ++i) {
+    const double x = v[i];
+    if (std::isfinite(x) && (!positive || x > 0)) continue;
+    const std::size_t row = i / static_cast<std::size_t>(width), col = i % static_cast<std::size_t>(width);
+    std::ostringstream os;
+    os << x;
+    throw InputError(c.file, "dataset " + dataset + " row " + std::to_string(row) +
+                                 (width > 1 ? " column " + std::to_string(col) : std::string()) + " is " + os.str() +
+                                 ": " + (positive ? "every value must be finite and > 0" : "every value must be finite") +
+                                 "; the ridge file is damaged or was edited: regenerate it with `hybridsim ridge`");
+  }
+}
+
+/// Rows of `width` values whose norm must be > 0 (orientations, joint normals).
+void check_nonzero_rows(const Ctx& c, const std::vector<double>& v, int width, const std::string& dataset) {
+  for (std::size_t i = 0; i + width <= v.size(); i += width) {
+    double n2 = 0;
+    for (int k = 0; k < width; ++k) n2 += v[i + k] * v[i + k];
+    if (!(n2 > 1e-24))
+      throw InputError(c.file, "dataset " + dataset + " row " + std::to_string(i / width) +
+                                   " has zero length (a direction or rotation must not be zero); the ridge file is "
+                                   "damaged or was edited: regenerate it with `hybridsim ridge`");
+  }
 }
 
 void put3(std::vector<double>& v, const Vec3& x) { v.insert(v.end(), {x.x(), x.y(), x.z()}); }
@@ -263,6 +295,10 @@ RidgeResult load_ridge(const std::string& path) {
     if (t != n) c.fail("row count check", "/ridge/blocks/orientation");
     const auto part = read_ds<std::int32_t>(c, g.get(), "part", 1, t);
     if (t != n) c.fail("row count check", "/ridge/blocks/part");
+    check_values(c, he, 3, "/ridge/blocks/half_extents", true);
+    check_values(c, pos, 3, "/ridge/blocks/position");
+    check_values(c, q, 4, "/ridge/blocks/orientation");
+    check_nonzero_rows(c, q, 4, "/ridge/blocks/orientation");
     r.blocks.resize(n);
     for (std::size_t i = 0; i < n; ++i) {
       r.blocks[i].half_extents = get3(he, i);
@@ -280,6 +316,10 @@ RidgeResult load_ridge(const std::string& path) {
     if (t != m) c.fail("row count check", "/ridge/joints/normal");
     const auto area = read_ds<double>(c, g.get(), "area", 1, t);
     if (t != m) c.fail("row count check", "/ridge/joints/area");
+    check_values(c, anchor, 3, "/ridge/joints/anchor");
+    check_values(c, normal, 3, "/ridge/joints/normal");
+    check_nonzero_rows(c, normal, 3, "/ridge/joints/normal");
+    check_values(c, area, 1, "/ridge/joints/area", true);
     r.joints.resize(m);
     for (std::size_t i = 0; i < m; ++i) {
       r.joints[i].a = ab[2 * i];
@@ -299,6 +339,8 @@ RidgeResult load_ridge(const std::string& path) {
     if (t != k) c.fail("row count check", "/ridge/ice/position");
     const auto part = read_ds<std::int32_t>(c, g.get(), "part", 1, t);
     if (t != k) c.fail("row count check", "/ridge/ice/part");
+    check_values(c, he, 3, "/ridge/ice/half_extents", true);
+    check_values(c, pos, 3, "/ridge/ice/position");
     r.ice.resize(k);
     for (std::size_t i = 0; i < k; ++i) {
       r.ice[i].half_extents = get3(he, i);
@@ -316,6 +358,11 @@ RidgeResult load_ridge(const std::string& path) {
     p.keel_depth = read_ds<double>(c, g.get(), "keel_depth", 1, t);
     p.sail_target = read_ds<double>(c, g.get(), "sail_target", 1, t);
     p.sail_height = read_ds<double>(c, g.get(), "sail_height", 1, t);
+    check_values(c, p.x, 1, "/ridge/profile/x");
+    check_values(c, p.keel_target, 1, "/ridge/profile/keel_target");
+    check_values(c, p.keel_depth, 1, "/ridge/profile/keel_depth");
+    check_values(c, p.sail_target, 1, "/ridge/profile/sail_target");
+    check_values(c, p.sail_height, 1, "/ridge/profile/sail_height");
   }
   return r;
 }

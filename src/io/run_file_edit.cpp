@@ -3,8 +3,11 @@
 #include "io/h5_handle.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <exception>
+#include <stdexcept>
+#include <string>
 
 namespace hs::io {
 
@@ -74,6 +77,10 @@ void RunFileEditor::add_group(const std::string& path) {
 }
 
 void RunFileEditor::set_attribute(const std::string& object, const std::string& name, double value) {
+  if (!std::isfinite(value))  // a figure that is not defined is omitted (with a note), never written as inf/NaN
+    throw std::invalid_argument("refusing to write the non-finite value " + std::to_string(value) + " to attribute '" +
+                                name + "' of '" + object + "' in '" + impl_->path +
+                                "': omit a figure that is not defined and say why");
   const Handle o = impl_->open_object(object);
   impl_->attribute(o.get(), object, name, H5T_NATIVE_DOUBLE, &value);
 }
@@ -85,6 +92,10 @@ void RunFileEditor::set_attribute(const std::string& object, const std::string& 
 
 void RunFileEditor::add_vector(const std::string& path, const std::vector<double>& v, const std::string& units,
                                const std::string& description) {
+  for (std::size_t k = 0; k < v.size(); ++k)
+    if (!std::isfinite(v[k]))
+      throw std::invalid_argument("refusing to write the non-finite value " + std::to_string(v[k]) + " at index " +
+                                  std::to_string(k) + " of '" + path + "' in '" + impl_->path + "'");
   impl_->vector(path, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, v.data(), v.size(), units, description);
 }
 

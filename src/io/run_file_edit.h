@@ -22,7 +22,8 @@ class RunFileEditor {
   /// Creates the group at `path` (absolute, e.g. "/analysis/iso"); its parent must exist.
   void add_group(const std::string& path);
   /// Scalar attribute `name` on the group or dataset at `object`: a double, or a
-  /// fixed-length ASCII string.
+  /// fixed-length ASCII string. A non-finite double is refused (std::invalid_argument): a
+  /// figure that is not defined is left out and explained, never written as inf or NaN.
   void set_attribute(const std::string& object, const std::string& name, double value);
   void set_attribute(const std::string& object, const std::string& name, const std::string& value);
   /// A 1-D dataset at `path` (little-endian float64 / int64) with "units" and "description"

@@ -7,6 +7,7 @@
 #include <cerrno>
 #include <cstring>
 #include <fstream>
+#include <set>
 #include <sstream>
 
 namespace hs {
@@ -15,9 +16,94 @@ using nlohmann::json;
 
 // ---------------------------------------------------------------- documents
 
+namespace {
+
+/// Where the parser is in the document, kept by the parser callback so that problems found
+/// while parsing (too deep, a duplicate key, a number out of range) name their JSON pointer.
+class ParsePosition {
+ public:
+  /// The pointer of the value being parsed now ("/time/dt", "/walls/0").
+  std::string pointer() const {
+    std::string p;
+    for (const Frame& f : frames_) {
+      if (f.object) {
+        if (f.has_key) p += "/" + json_pointer_token(f.key);
+      } else {
+        p += "/" + std::to_string(f.index);
+      }
+    }
+    return p;
+  }
+  /// The parser callback: tracks the position, refuses duplicate keys and deep nesting.
+  bool on_event(json::parse_event_t event, const json& parsed) {
+    using E = json::parse_event_t;
+    switch (event) {
+      case E::object_start:
+      case E::array_start:
+        if (frames_.size() >= kJsonMaxDepth)
+          throw InputError(json_pointer_display(short_pointer()),
+                           "JSON nesting deeper than " + std::to_string(kJsonMaxDepth) +
+                               " levels of objects and arrays; a scene needs a handful: check the file for "
+                               "runaway brackets");
+        frames_.push_back(Frame{event == E::object_start});
+        break;
+      case E::key: {
+        Frame& f = frames_.back();
+        f.key = parsed.get<std::string>();
+        f.has_key = true;
+        if (!f.keys.insert(f.key).second)
+          throw InputError(json_pointer_display(pointer()),
+                           "duplicate key \"" + f.key + "\": it is given twice in the same object and only one value "
+                           "can be used; remove one of them");
+        break;
+      }
+      case E::object_end:
+      case E::array_end:
+        frames_.pop_back();
+        [[fallthrough]];
+      case E::value:
+        if (!frames_.empty()) {
+          Frame& f = frames_.back();
+          if (f.object)
+            f.has_key = false;
+          else
+            ++f.index;
+        }
+        break;
+    }
+    return true;
+  }
+
+ private:
+  struct Frame {
+    bool object = false;
+    std::size_t index = 0;  ///< arrays: elements completed so far
+    std::string key;        ///< objects: the current key
+    bool has_key = false;
+    std::set<std::string> keys{};
+  };
+  /// The pointer cut to its first levels (a runaway nesting would make it enormous).
+  std::string short_pointer() const {
+    std::string p = pointer();
+    if (p.size() > 80) p = p.substr(0, 80) + "...";
+    return p;
+  }
+  std::vector<Frame> frames_;
+};
+
+}  // namespace
+
 json parse_json_text(const std::string& text, const std::string& source) {
+  ParsePosition pos;
   try {
-    return json::parse(text);
+    return json::parse(text, [&pos](int, json::parse_event_t event, json& parsed) { return pos.on_event(event, parsed); });
+  } catch (const json::out_of_range& e) {
+    // nlohmann: "[json.exception.out_of_range.406] number overflow parsing '1e400'"
+    std::string what = e.what();
+    const std::size_t b = what.find("] ");
+    if (b != std::string::npos) what = what.substr(b + 2);
+    throw InputError(json_pointer_display(pos.pointer()),
+                     what + ": the number is beyond the range of a double (about 1.8e308); give a finite value");
   } catch (const json::parse_error& e) {
     // Byte offset -> line and column (1-based).
     std::size_t line = 1, col = 1;

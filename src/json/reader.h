@@ -35,8 +35,14 @@ namespace hs {
 
 // ---------------------------------------------------------------- documents
 
+/// Deepest nesting of objects and arrays parse_json_text accepts (a scene needs about 5).
+inline constexpr std::size_t kJsonMaxDepth = 100;
+
 /// Parses JSON text; syntax errors become InputError(source, "invalid JSON at line L, column C:
-/// ...; fix the syntax there ..."). `source` names the text (file name) in messages.
+/// ...; fix the syntax there ..."). `source` names the text (file name) in messages. Found while
+/// parsing, before the document is built, and reported at their JSON pointer: nesting deeper
+/// than kJsonMaxDepth, a key given twice in one object, a number beyond the range of a double
+/// (1e400).
 nlohmann::json parse_json_text(const std::string& text, const std::string& source);
 
 /// Reads a file and parses it; a missing or unreadable file is InputError(path, "cannot open the

@@ -379,6 +379,13 @@ void finish(TriMesh& m, const std::string& path, const MeshLoadOptions& opt) {
                            "(not empty, not truncated)");
   }
   check_finite_vertices(m, path);
+  // Finite coordinates can still span more than a double holds (1e308 and -1e308): the weld
+  // tolerance would be inf and merge every vertex into one.
+  const Aabb box = bounding_box(m);
+  if (!std::isfinite(box.extent().norm()))
+    throw InputError(path, "the mesh spans from " + fmt_vec(box.lo) + " to " + fmt_vec(box.hi) +
+                               ", too large to measure; mesh coordinates are in metres: check the units or "
+                               "re-export the mesh");
   double tol = opt.weld_tolerance;
   if (tol < 0.0) tol = 1e-6 * bounding_box(m).extent().norm();
   weld_vertices(m, tol);

@@ -237,6 +237,19 @@ std::vector<ProfilePoint> load_profile_csv(const std::string& path);
 double box_penetration(const Vec3& ha, const Vec3& xa, const Quat& qa, const Vec3& hb,
                        const Vec3& xb, const Quat& qb);
 
+/// What generate_ridge will build, estimated from the definition before anything is allocated
+/// (the memory guard of `hybridsim ridge`).
+struct RidgeEstimate {
+  double keel_volume = 0.0, sail_volume = 0.0;  ///< target envelopes, m^3
+  double mean_block_volume = 0.0;               ///< E[L B h] of the sampled blocks, m^3
+  double blocks = 0.0;  ///< (1 - fill_porosity) (keel + sail volume) / mean block volume
+  double bytes = 0.0;   ///< blocks x kRidgeBytesPerBlock
+};
+/// Resident memory per block while settling (rigid body, shape, broad-phase entry, contact
+/// manifolds, joints, placement grid), bytes.
+inline constexpr double kRidgeBytesPerBlock = 4096.0;
+RidgeEstimate ridge_estimate(const RidgeDef& def);
+
 /// RidgeDef from the JSON object at json_path_prefix (e.g. "/ridge"). Strict: wrong types,
 /// out-of-range values and unknown keys (with a did-you-mean hint) throw hs::InputError
 /// naming the JSON path. A relative keel_profile_csv is resolved against base_dir.

@@ -32,6 +32,15 @@ struct TimeDef {
   double snapshot_interval = 0.0;  ///< s between particle snapshots; 0 = none
 };
 
+/// Most DEM steps a run may take (time.duration / dt). Beyond it even a thousand-particle sheet
+/// runs for months on one core, and the step count no longer fits the schedule's counters
+/// exactly: such a dt (1e-300) is a typing error, refused at /time/dt.
+inline constexpr double kMaxSteps = 1e10;
+
+/// InputError at /time/dt, naming /time/duration, when duration / dt exceeds kMaxSteps.
+/// `dt_origin` says where dt came from ("" for time.dt itself, or e.g. " (Eq. 2: ...)").
+void check_step_count(const TimeDef& t, double dt, const std::string& dt_origin = "");
+
 struct MaterialDef {
   double density = 920.0;          ///< kg/m^3
   double youngs_modulus = 1e9;     ///< Pa

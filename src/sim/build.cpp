@@ -4,10 +4,16 @@
 #include "bonded/hcp_lattice.h"
 #include "common/error.h"
 #include "common/ice_formulas.h"
+#include "json/reader.h"
 #include "mesh/pier.h"
+#include "mesh/sphere_mesh_contact.h"
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <cstdint>
+#include <fstream>
+#include <string>
 
 namespace hs::sim {
 
@@ -107,6 +113,154 @@ analysis::IsoInputs iso_inputs(const scene::Scene& s, double rubble_height) {
   in.rubble_friction_angle_deg = s.analysis.rubble_friction_angle_deg;
   in.keel_depth = s.analysis.keel_depth;
   return in;
+}
+
+double engine_memory_bytes(double particles, double bonds, std::size_t walls) {
+  using namespace bonded;
+  const double per_particle = 5 * sizeof(Vec3) + sizeof(Quat) + 5 * sizeof(double) + sizeof(GlobalId) +
+                              sizeof(MaterialIndex) + 2 + sizeof(Vec3) /*x at build*/ +
+                              3 * sizeof(std::uint32_t) /*cells*/ + walls * sizeof(Vec3) /*wall history*/ +
+                              32 /*gid index*/ + 4 * sizeof(ContactPair) /*contacts, assumed*/;
+  return particles * per_particle + bonds * (sizeof(Bond) + 8 /*partner lists*/);
+}
+
+MemoryEstimate memory_estimate(const scene::Scene& s) {
+  const auto& ice = s.ice;
+  const double D = s.material.particle_diameter;
+  const double c = bonded::hcp_layer_spacing(D);
+  const double per_layer = ice.length * ice.width / (D * D * std::sqrt(3.0) / 2.0);
+  const double thick = std::max(ice.thickness, ice.has_consolidated_layer ? ice.consolidated_layer.thickness : 0.0);
+  MemoryEstimate m;
+  m.particles = per_layer * std::max(1.0, std::round(thick / c));
+  m.bonds = 6.0 * m.particles;
+  // The lattice is filled once as a list of centres before the particles are added.
+  m.bytes = engine_memory_bytes(m.particles, m.bonds, s.walls.size()) + m.particles * sizeof(Vec3);
+  return m;
+}
+
+double available_memory_bytes() {
+  std::ifstream in("/proc/meminfo");
+  std::string key, unit;
+  double kb = 0;
+  while (in >> key >> kb) {
+    std::getline(in, unit);
+    if (key == "MemAvailable:") return kb * 1024.0;
+  }
+  return -1.0;
+}
+
+void check_memory(const scene::Scene& s, const MemoryEstimate& est, double available, int ranks) {
+  if (available < 0) return;
+  const double need = est.bytes * std::max(ranks, 1);
+  if (need <= available) return;
+  const auto gib = [](double b) { return json_fmt(b / 1073741824.0) + " GiB"; };
+  const auto& ice = s.ice;
+  throw InputError(
+      "/ice", "the scene needs about " + gib(need) + " of memory" +
+                  (ranks > 1 ? " (" + gib(est.bytes) + " on each of " + std::to_string(ranks) +
+                                   " ranks: every rank builds the whole sheet before keeping its share)"
+                             : std::string()) +
+                  " but only " + gib(available) + " is available (MemAvailable in /proc/meminfo): ~" +
+                  json_fmt(est.particles) + " particles and ~" + json_fmt(est.bonds) +
+                  " bonds from /ice/length = " + json_fmt(ice.length) + " m x /ice/width = " + json_fmt(ice.width) +
+                  " m x /ice/thickness = " + json_fmt(ice.thickness) + " m at /material/particle_diameter = " +
+                  json_fmt(s.material.particle_diameter) +
+                  " m; reduce the sheet or increase the particle diameter (the count goes as 1/D^3), or pass "
+                  "--ignore-memory-limit to try anyway");
+}
+
+namespace {
+
+/// Solid angle of triangle (a, b, c) seen from the origin (Van Oosterom & Strackee 1983), sr.
+double solid_angle(const Vec3& a, const Vec3& b, const Vec3& c) {
+  const double la = a.norm(), lb = b.norm(), lc = c.norm();
+  const double num = a.dot(b.cross(c));
+  const double den = la * lb * lc + a.dot(b) * lc + b.dot(c) * la + c.dot(a) * lb;
+  return 2.0 * std::atan2(num, den);
+}
+
+/// Whether p (mesh-local) is inside the closed mesh: winding number = total solid angle / 4 pi.
+bool inside_closed_mesh(const mesh::TriMesh& m, const Vec3& p) {
+  double w = 0.0;
+  for (const auto& t : m.triangles)
+    w += solid_angle(m.vertices[t[0]] - p, m.vertices[t[1]] - p, m.vertices[t[2]] - p);
+  return std::abs(w) > 2.0 * M_PI;
+}
+
+}  // namespace
+
+StructureOverlap structure_overlap(const Built& b, const scene::Scene& s) {
+  StructureOverlap o;
+  if (b.structure < 0) return o;
+  const auto& ps = b.engine->particles();
+  const Vec3 offset = s.structure.position;
+  const mesh::TriMesh& m = b.structure_mesh;
+  const mesh::Aabb box = mesh::bounding_box(m);
+  double rmax = 0.0;
+  for (std::size_t i = 0; i < ps.size(); ++i) rmax = std::max(rmax, ps.radius[i]);
+  if (rmax <= 0) return o;
+  const bool closed = mesh::is_closed(m);
+  const mesh::MeshGrid grid(m, rmax);
+  std::vector<mesh::MeshContact> contacts;
+  mesh::MeshQueryScratch scratch;
+  for (std::size_t i = 0; i < ps.size(); ++i) {
+    const double r = ps.radius[i];
+    const Vec3 c = ps.x[i] - offset;
+    // Only spheres reaching into the mesh's bounding box can touch or be inside it.
+    if ((c.array() < box.lo.array() - r).any() || (c.array() > box.hi.array() + r).any()) continue;
+    grid.query(c, r, contacts, scratch);
+    double deepest = 0.0;
+    for (const auto& k : contacts) deepest = std::max(deepest, k.overlap);
+    const bool in = closed && inside_closed_mesh(m, c);
+    if (deepest <= kInitialOverlapTolerance * r && !in) continue;
+    ++o.particles;
+    if (in) ++o.inside;
+    if (in || deepest >= s.stability.max_overlap_ratio * r) ++o.deep;
+    if (in && o.inside == 1 && o.max_overlap == 0) o.first = ps.x[i];
+    if (!in && deepest > o.max_overlap) {
+      o.max_overlap = deepest;
+      o.max_overlap_ratio = deepest / r;
+      if (o.inside == 0) o.first = ps.x[i];
+    }
+  }
+  return o;
+}
+
+std::string check_structure_overlap(const Built& b, const scene::Scene& s) {
+  const StructureOverlap o = structure_overlap(b, s);
+  if (o.particles == 0) return "";
+  const auto v3 = [](const Vec3& v) {
+    return "[" + json_fmt(v.x()) + ", " + json_fmt(v.y()) + ", " + json_fmt(v.z()) + "]";
+  };
+  const std::string what =
+      std::to_string(o.particles) + " ice particles start " + (o.inside ? "inside or " : "") +
+      "overlapping the structure '" + s.structure.name + "' at " + v3(s.structure.position) + " m (" +
+      (o.inside ? std::to_string(o.inside) + " with the centre inside it; " : std::string()) +
+      (o.max_overlap > 0 ? "deepest surface overlap " + json_fmt(o.max_overlap) + " m = " +
+                               json_fmt(o.max_overlap_ratio) + " of the radius; "
+                         : std::string()) +
+      "e.g. the particle at " + v3(o.first) + " m)";
+  // A position that clears the sheet along x, on the side the structure comes from (its
+  // velocity; -x when it does not move along x): its bounding box one diameter off the edge.
+  const mesh::Aabb box = mesh::bounding_box(b.structure_mesh);
+  const double D = s.material.particle_diameter;
+  const double x0 = s.ice.origin[0], x1 = x0 + s.ice.length;
+  const bool from_minus = !(s.structure.velocity.x() < 0);
+  const std::string clear = from_minus ? "/structure/position x <= " + json_fmt(x0 - box.hi.x() - D)
+                                       : "/structure/position x >= " + json_fmt(x1 - box.lo.x() + D);
+  const std::string how = "place the structure clear of the sheet (x from " + json_fmt(x0) + " to " + json_fmt(x1) +
+                          " m, y from " + json_fmt(s.ice.origin[1]) + " to " +
+                          json_fmt(s.ice.origin[1] + s.ice.width) + " m): move it away from the ice by at least " +
+                          "the deepest overlap, or to " + clear + " m (clear of its bounding box), or move /ice/origin";
+  if (o.deep == 0)
+    return "/structure/position: " + what + "; they are pushed out at the first steps; to start without contact, " +
+           how;
+  throw InputError("/structure/position", what + ": the load would be wrong from the first step (the run stops as "
+                                                 "unstable at overlaps of /stability/max_overlap_ratio = " +
+                                              json_fmt(s.stability.max_overlap_ratio) +
+                                              " of the radius, and a particle inside the structure is never pushed "
+                                              "out). " + std::string(1, static_cast<char>(std::toupper(how[0]))) +
+                                              how.substr(1));
 }
 
 Built build_engine(const scene::Scene& s, bool check_dt) {

@@ -49,6 +49,51 @@ double structure_radius(const scene::Scene& s, const mesh::TriMesh& m);
 /// InputError at /structure when the scene has no parametric pier.
 analysis::IsoInputs iso_inputs(const scene::Scene& s, double rubble_height);
 
+// ---- memory guard ----
+/// Rough resident memory of the engine for n particles, b bonds and w plane walls, bytes (the
+/// figure `hybridsim check` prints as "estimated memory").
+double engine_memory_bytes(double particles, double bonds, std::size_t walls);
+
+/// What a scene will allocate, estimated from its definition before anything is built.
+struct MemoryEstimate {
+  double particles = 0;  ///< ice extent / D: length x width / (D^2 sqrt(3)/2) per layer x layers
+  double bonds = 0;      ///< ~6 per particle (12 HCP neighbours, each bond shared)
+  double bytes = 0;      ///< engine_memory_bytes of the above, plus the lattice built once
+};
+MemoryEstimate memory_estimate(const scene::Scene& s);
+
+/// MemAvailable of /proc/meminfo, bytes; a negative number when it cannot be read.
+double available_memory_bytes();
+
+/// InputError at /ice when `ranks` copies of the estimate (every rank builds the whole scene
+/// before keeping its share) exceed `available` bytes: names the fields that set the size
+/// (/ice/length, /ice/width, /ice/thickness, /material/particle_diameter), the estimate and the
+/// available memory, and --ignore-memory-limit. Nothing happens when `available` < 0 (unknown).
+void check_memory(const scene::Scene& s, const MemoryEstimate& est, double available, int ranks = 1);
+
+// ---- initial overlap ----
+/// Particles of the built sheet that start inside the structure or overlapping its surface.
+struct StructureOverlap {
+  std::size_t particles = 0;      ///< overlapping by more than kInitialOverlapTolerance x r, or inside
+  std::size_t inside = 0;         ///< of which the centre is inside the (closed) mesh
+  std::size_t deep = 0;           ///< of which the overlap reaches stability.max_overlap_ratio x r
+  double max_overlap = 0.0;       ///< m, deepest surface overlap (inside: not measured)
+  double max_overlap_ratio = 0.0; ///< the same / r
+  Vec3 first = Vec3::Zero();      ///< world position of the deepest such particle (or one inside)
+};
+/// Surface overlaps up to this fraction of the radius count as touching (a sheet placed
+/// exactly against the structure).
+inline constexpr double kInitialOverlapTolerance = 1e-3;
+/// Tests every particle against the structure's mesh at its position: the sphere-mesh contact
+/// query (sphere_mesh_contact.h) for overlaps, a winding-number test for centres inside a
+/// closed mesh (the contact query does not see a centre deeper than r). Zero without a structure.
+StructureOverlap structure_overlap(const Built& b, const scene::Scene& s);
+/// InputError at /structure/position when a particle's centre is inside the structure or its
+/// overlap reaches stability.max_overlap_ratio x r (what the run would stop on as unstable):
+/// their number, the deepest overlap, where, the sheet's extent and a position that clears it.
+/// Smaller overlaps (> kInitialOverlapTolerance r) return a warning (else "").
+std::string check_structure_overlap(const Built& b, const scene::Scene& s);
+
 /// Builds the engine: bonded HCP ice floating at equilibrium, walls, the structure. With check_dt the time
 /// step is checked against the critical step (InputError at "/time/dt" if too large).
 Built build_engine(const scene::Scene& s, bool check_dt = true);

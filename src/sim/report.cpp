@@ -53,11 +53,24 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
   const double h_iso = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
   an.L_c = characteristic_length(s.material.youngs_modulus, h_iso, s.water.density, s.gravity.norm(),
                                  s.material.poisson_ratio);
-  if (sim.has_structure() && s.structure.type == "pier") {
+  if (!std::isfinite(an.L_c)) {
+    an.L_c_note = "L_c not defined: gravity is zero (L_c = (E h^3 / (12 (1 - nu^2) rho_w g))^(1/4) needs g > 0)";
+    an.L_c = 0.0;
+  }
+  if (sim.has_structure() && s.structure.type == "pier" && !(s.gravity.norm() > 0)) {
+    an.iso_note = "ISO 19906 estimate not computed: gravity is zero (the cone formulas need g > 0)";
+  } else if (sim.has_structure() && s.structure.type == "pier") {
     try {
       an.iso_in = iso_inputs(s, f.max_pile);
       an.iso = analysis::compute_iso(an.iso_in);
       an.has_iso = true;
+      // Any figure that is not finite (degenerate inputs) leaves the estimate out, with the reason.
+      const nlohmann::json result = analysis::iso_to_json(an.iso);
+      for (const auto& [k, v] : result.items())
+        if (!std::isfinite(v.get<double>()) && an.has_iso) {
+          an.has_iso = false;
+          an.iso_note = "ISO 19906 estimate not computed: " + k + " is not finite for these inputs";
+        }
     } catch (const InputError& err) {
       an.iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
     }
@@ -113,7 +126,10 @@ void write_analysis(const std::string& path, const RunReport& a) {
                "particles per piece (connected over intact bonds) at the end of the run, descending");
   f.add_vector("/analysis/pieces/extent", a.pieces.extent, "m",
                "max horizontal extent of each piece (larger side of its x-y bounding box, spheres included)");
-  f.set_attribute("/analysis/pieces", "characteristic_length", a.L_c);
+  if (a.L_c_note.empty())
+    f.set_attribute("/analysis/pieces", "characteristic_length", a.L_c);
+  else
+    f.set_attribute("/analysis/pieces", "characteristic_length_note", a.L_c_note);
   if (a.has_iso) {
     const std::string g = "/analysis/iso";
     f.add_group(g);

@@ -22,6 +22,7 @@ namespace hs::sim {
 struct RunReport {
   analysis::Pieces pieces;     ///< rank 0 only
   double L_c = 0.0;            ///< m, characteristic length of the (consolidated) ice
+  std::string L_c_note;        ///< why L_c is not defined (zero gravity); then L_c is not written
   bool has_iso = false;
   analysis::IsoInputs iso_in;  ///< rubble height = the max simulated pile height
   analysis::IsoResult iso;

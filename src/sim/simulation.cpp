@@ -10,6 +10,7 @@ namespace hs::sim {
 Schedule schedule(const scene::TimeDef& t, double dt) {
   Schedule sc;
   sc.dt = dt;
+  scene::check_step_count(t, dt, t.dt > 0 ? "" : " (from Eq. 2 with /time/dt = 0)");
   sc.total_steps = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::ceil(t.duration / dt - 1e-9)));
   sc.output_every = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(t.output_interval / dt)));
   if (t.snapshot_interval > 0)
@@ -37,10 +38,14 @@ void Simulation::structure_load(StructureLoad& out) const {
 
 Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {
   Simulation sim;
+  if (!opt.ignore_memory_limit) check_memory(s, memory_estimate(s), available_memory_bytes(), comm.size());
   sim.built_ = build_engine(s, opt.check_dt);
+  // InputError when the ice starts inside the structure; a warning for shallow overlaps
+  const std::string overlap = check_structure_overlap(sim.built_, s);
   bonded::Engine& e = *sim.built_.engine;
   const mesh::TriMesh* structure = sim.has_structure() ? &sim.built_.structure_mesh : nullptr;
   sim.blocks_ = block_setup(s, structure, sim.built_.structure_radius);
+  if (!overlap.empty()) sim.blocks_.warnings.push_back(overlap);
   bridge::HybridDef def = sim.blocks_.def;
   if (!opt.convert) def.mode = bridge::ConversionMode::Never;  // count and check only
   const auto& b = sim.blocks_;

@@ -45,6 +45,9 @@ struct StructureLoad {
 struct BuildOptions {
   bool check_dt = true;  ///< InputError at /time/dt if dt exceeds the critical step
   bool convert = true;   ///< false: blocks stay rigid whatever the scene says (`hybridsim check`)
+  /// false: InputError at /ice, before anything is allocated, when memory_estimate (times the
+  /// ranks) exceeds the machine's available memory (check_memory). --ignore-memory-limit.
+  bool ignore_memory_limit = false;
 };
 
 class Simulation {

@@ -161,3 +161,37 @@ TEST(JsonReader, TextAndFiles) {
   EXPECT_EQ(hs::read_json_file(f.string()).at("thickness"), 0.9);
   std::filesystem::remove(f);
 }
+
+// Issue 14, defect 9: found while parsing, before the document is built, at their JSON pointer.
+TEST(JsonReaderGuards, DeepNestingIsRefusedNotACrash) {
+  // 100,000 levels used to parse, then overflow the stack when the error was formatted.
+  const std::string deep = "{\"name\": \"x\", \"time\": " + std::string(100000, '[') + std::string(100000, ']') + "}";
+  const std::string e = error_of([&] { hs::parse_json_text(deep, "deep.json"); });
+  EXPECT_NE(e.find("nesting deeper than 100"), std::string::npos) << e.substr(0, 300);
+  EXPECT_EQ(e.rfind("/time/0/0", 0), 0u) << e.substr(0, 300);  // the path says where
+  // Exactly the limit is fine.
+  const std::size_t n = hs::kJsonMaxDepth;
+  EXPECT_NO_THROW(hs::parse_json_text(std::string(n, '[') + std::string(n, ']'), "ok.json"));
+  EXPECT_THROW(hs::parse_json_text(std::string(n + 1, '[') + std::string(n + 1, ']'), "no.json"), InputError);
+}
+
+TEST(JsonReaderGuards, DuplicateKeysAreRefusedWithTheirPath) {
+  const std::string e =
+      error_of([] { hs::parse_json_text(R"({"time": {"dt": 1e-4, "duration": 1, "dt": 2e-4}})", "dup.json"); });
+  EXPECT_EQ(e.rfind("/time/dt | ", 0), 0u) << e;
+  EXPECT_NE(e.find("duplicate key \"dt\""), std::string::npos) << e;
+  // In an array of objects the index is part of the path; equal keys in different objects are fine.
+  const std::string e2 =
+      error_of([] { hs::parse_json_text(R"({"walls": [{"name": "a"}, {"name": "b", "name": "c"}]})", "dup.json"); });
+  EXPECT_EQ(e2.rfind("/walls/1/name | ", 0), 0u) << e2;
+  EXPECT_NO_THROW(hs::parse_json_text(R"({"a": {"x": 1}, "b": {"x": 1}, "c": [{"x": 1}, {"x": 2}]})", "ok.json"));
+}
+
+TEST(JsonReaderGuards, NumbersBeyondADoubleAreInputErrorsWithTheirPath) {
+  const std::string e =
+      error_of([] { hs::parse_json_text(R"({"name": "x", "time": {"duration": 1e400}})", "big.json"); });
+  EXPECT_EQ(e.rfind("/time/duration | ", 0), 0u) << e;
+  EXPECT_NE(e.find("1e400"), std::string::npos) << e;
+  const std::string e2 = error_of([] { hs::parse_json_text(R"({"walls": [{"point": [0, -1e999, 0]}]})", "big.json"); });
+  EXPECT_EQ(e2.rfind("/walls/0/point/1 | ", 0), 0u) << e2;
+}

@@ -265,6 +265,14 @@ TEST(TriMeshErrors, ObjFaceIndexOutOfRange) {
   expect_input_error([&] { load_obj(zero); }, zero, {"line 4", "1-based"});
 }
 
+TEST(TriMeshErrors, CoordinatesSpanningMoreThanADoubleAreRefused) {
+  // Finite, but the bounding box's size overflows: every vertex used to be welded into one
+  // and the error blamed a "degenerate triangle (0, 0, 0), (0, 0, 0), (0, 0, 0)".
+  const std::string obj = write_text("huge.obj", "v 0 0 0\nv 1e308 0 0\nv -1e308 1 0\nv 0 0 1\n"
+                                                  "f 1 2 4\nf 1 4 3\nf 1 3 2\nf 2 3 4\n");
+  expect_input_error([&] { load_obj(obj); }, obj, {"too large to measure", "metres"});
+}
+
 TEST(TriMeshErrors, BadNumbersAndNaN) {
   const std::string obj_nan =
       write_text("nan.obj", "v 0 0 0\nv 1 0 0\nv nan 1 0\nf 1 2 3\n");
