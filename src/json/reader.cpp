@@ -45,7 +45,8 @@ class ParsePosition {
                            "JSON nesting deeper than " + std::to_string(kJsonMaxDepth) +
                                " levels of objects and arrays; a scene needs a handful: check the file for "
                                "runaway brackets");
-        frames_.push_back(Frame{.object = event == E::object_start});
+        frames_.emplace_back();
+        frames_.back().object = event == E::object_start;
         break;
       case E::key: {
         Frame& f = frames_.back();
