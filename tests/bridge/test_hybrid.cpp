@@ -153,7 +153,7 @@ TEST(HybridStep, BlockLoadOnStructureBalancesItsMomentum) {
   EXPECT_NEAR(t, e.time(), 1e-12);
   const Vec3 expected = -(m * (h.world()->velocity(id) - v0) - m * Vec3(0, 0, -9.81) * t);
   EXPECT_GT(impulse.norm(), 0.5 * m);
-  EXPECT_LT((impulse - expected).norm(), 1e-9 * expected.norm());
+  EXPECT_LT((impulse - expected).norm(), 2e-13 * expected.norm());  // measured 1.84e-14
   std::printf("[ hybrid ] block on cone via the hybrid stepper: impulse (%.2f, %.2f, %.2f) N s, momentum balance "
               "error %.2e\n",
               impulse.x(), impulse.y(), impulse.z(), (impulse - expected).norm() / expected.norm());

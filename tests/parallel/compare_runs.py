@@ -11,6 +11,11 @@
       every dataset under /series is bit-identical (a repeated run);
   compare_runs.py stats A.h5 B.h5 --tol 0.05
       mean and peak horizontal force on the structure agree within tol (relative).
+  compare_runs.py sane A.h5
+      one run on its own: every dataset under /series finite; rows contiguous (step strictly
+      increasing by the same count every row but the last, time = step x dt with one dt);
+      without rigid blocks (no /series/blocks: no conversion) the particle count constant and
+      bonds + bonds_broken constant, with them both non-decreasing; bonds_broken non-decreasing.
 Prints the figures; exit 1 when they disagree.
 """
 import argparse
@@ -43,7 +48,47 @@ def print_summary(a, b, rows):
             print(f"{k}: last {a[k][:rows][-1]} vs {b[k][:rows][-1]}, largest {a[k][:rows].max()} vs {b[k][:rows].max()}")
 
 
+def sane(path):
+    f = h5py.File(path, "r")
+    s = f["series"]
+    ok = True
+
+    def check(cond, msg):
+        nonlocal ok
+        print(("ok    " if cond else "FAIL  ") + msg)
+        ok &= bool(cond)
+
+    ds = datasets(s)
+    bad = [k for k, v in ds.items() if np.issubdtype(v.dtype, np.floating) and not np.isfinite(v).all()]
+    check(not bad, f"{len(ds)} datasets finite" + (f" (not: {bad})" if bad else ""))
+    t, step = s["time"][()], s["step"][()]
+    n = len(t)
+    check(n >= 2 and all(len(v) == n for v in ds.values()), f"{n} rows in every dataset")
+    ds_ = np.diff(step)
+    check((ds_ > 0).all() and (n < 3 or ((ds_[:-1] == ds_[0]).all() and ds_[-1] <= ds_[0])),
+          f"steps {step[0]}..{step[-1]}, every {ds_[0] if n > 1 else 0} (last {ds_[-1] if n > 1 else 0})")
+    dt = t[-1] / max(step[-1], 1)
+    terr = np.abs(t - step * dt).max()
+    check((np.diff(t) > 0).all() and terr <= 1e-9 * max(t[-1], 1e-300),
+          f"time {t[0]:.6g}..{t[-1]:.6g} s = step x {dt:.6g} s (max difference {terr:.1e} s)")
+    p, b, nb = s["particles"][()], s["bonds"][()], s["bonds_broken"][()]
+    check((np.diff(nb) >= 0).all(), f"bonds broken non-decreasing, {nb[0]} -> {nb[-1]}")
+    if "blocks" in s:
+        check((np.diff(p) >= 0).all(), f"particles non-decreasing (conversion only adds), {p[0]} -> {p[-1]}")
+        check((np.diff(b + nb) >= 0).all(), f"bonds + broken non-decreasing, {b[0] + nb[0]} -> {b[-1] + nb[-1]}")
+    else:
+        check((p == p[0]).all(), f"particles conserved ({p[0]}; no blocks, none leaves)")
+        check((b + nb == b[0] + nb[0]).all(),
+              f"bonds + broken conserved ({b[0] + nb[0]}), bonds {b[0]} -> {b[-1]} non-increasing")
+    e = s["energy/total"][()]
+    check(np.isfinite(e).all(), f"total energy finite, {e[0]:.6g} -> {e[-1]:.6g} J")
+    print("sane" if ok else "NOT SANE")
+    return 0 if ok else 1
+
+
 def main():
+    if len(sys.argv) == 3 and sys.argv[1] == "sane":
+        return sane(sys.argv[2])
     ap = argparse.ArgumentParser()
     ap.add_argument("mode", choices=["steps", "same", "stats"])
     ap.add_argument("a")

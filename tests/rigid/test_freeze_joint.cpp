@@ -190,10 +190,15 @@ TEST(RigidFreezeJoint, SpringJointHasTheStatedStiffnesses) {
       const double got[4] = {d.x(), d.y(), angle, angle};
       const double want[4] = {F / (def.joint_stiffness * A), F / (def.joint_stiffness * A),
                               M / (def.joint_stiffness * I), M / (2.0 * def.joint_stiffness * I)};
-      std::printf("[ rigid ] spring joint %s (%s frame): %.4e (expected %.4e), ratio %.4f; speed %.1e m/s\n",
+      std::printf("[ rigid ] spring joint %s (%s frame): %.4e (expected %.4e), ratio %.6f (%+.1e); speed %.1e m/s\n",
                   names[mode], Q.isApprox(Quat::Identity()) ? "world" : "oblique", got[mode], want[mode],
-                  got[mode] / want[mode], w.velocity(ib).norm());
-      EXPECT_NEAR(got[mode] / want[mode], 1.0, 0.02);
+                  got[mode] / want[mode], got[mode] / want[mode] - 1.0, w.velocity(ib).norm());
+      // Measured (both frames): stretch +3.3e-13 / +3.8e-13, shear +1.3e-15 / +5.1e-13, twist -2.4e-15 /
+      // +7.3e-14 -> limit 5e-12 (10x). Bending -4.0e-3 in both frames (0.995985 / 0.995986): a
+      // deterministic offset of Bullet's 6-DoF spring bending rows, not noise (the small-angle
+      // error at 0.01 rad is ~1e-5; not tracked down), so there is nothing to multiply by 10: the
+      // limit 0.01 keeps the offset inside and fails a 1 % change in the bending stiffness.
+      EXPECT_NEAR(got[mode] / want[mode], 1.0, mode == 2 ? 0.01 : 5e-12);
       EXPECT_LT(w.velocity(ib).norm(), 1e-4) << "damped to rest";
     }
 }

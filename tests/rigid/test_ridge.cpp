@@ -85,10 +85,15 @@ TEST(Ridge, SmallRidgeIsSane) {
   EXPECT_GT(s.sail_blocks, 3u);
   EXPECT_GT(s.joints, s.keel_blocks / 2);
   // A keel only ~10 blocks deep, between end walls 3 m apart, packs loosely (docs/ridge.md).
-  EXPECT_GT(s.keel_porosity, 0.2);
-  EXPECT_LT(s.keel_porosity, 0.75);
-  EXPECT_GT(s.core_porosity, 0.2);
-  EXPECT_LT(s.core_porosity, 0.65);
+  // Measured (seed 11): keel 0.516, core 0.471. There is no target to measure a distance from
+  // (fill_porosity 0.4 only counts blocks), so the band is the seed-to-seed spread: seeds 1-8 gave
+  // keel 0.476-0.530 and core 0.320-0.476 (a throwaway sweep of small_def(1..8)); the bands
+  // take about that spread again on each side: a change that moves seed 11 out of them
+  // moves the packing beyond what a different seed does.
+  EXPECT_GT(s.keel_porosity, 0.43);
+  EXPECT_LT(s.keel_porosity, 0.58);
+  EXPECT_GT(s.core_porosity, 0.25);
+  EXPECT_LT(s.core_porosity, 0.55);
   EXPECT_GT(s.keel_depth_achieved, 0.6 * s.keel_depth_target);
   EXPECT_LT(s.keel_depth_achieved, 1.6 * s.keel_depth_target);
   EXPECT_LT(s.keel_profile_rms_error, 0.5 * s.keel_depth_target);
