@@ -55,6 +55,7 @@ def set_path(scene, path, value):
 # case -> (overrides {dotted path: value}, expected outcome[, a regex the summary must match])
 CASES = {
     "stiff_E1e10": ({"material.youngs_modulus": 1e10}, "ok"),
+    "stiff_E1e10_hertz": ({"material.youngs_modulus": 1e10, "material.contact_model": "hertz"}, "ok"),
     "structure_5ms": ({"structure.velocity": [5.0, 0, 0]}, "ok"),
     "structure_20ms": ({"structure.velocity": [20.0, 0, 0]}, "ok"),
     # The same with a speed limit below the pier's speed: the ice it hits passes the limit, so the
