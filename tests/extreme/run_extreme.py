@@ -1,0 +1,181 @@
+#!/usr/bin/env python3
+"""Stiff and extreme cases (issue 14, item 6): one tiny scene run through the hybridsim binary.
+
+    run_extreme.py HYBRIDSIM CASE WORKDIR
+
+A small floating ice patch (2 m x 2 m, D = 0.25 m, E = 1e8 Pa) with a parametric pier that starts
+2 cm from its edge and pushes into it for 0.1 s; each CASE changes one thing to an extreme value
+(CASES below). A case passes when the run ends as expected:
+  "ok"       exit 0, and every numeric dataset and attribute of the output file is finite;
+  "unstable" exit 3 with the instability diagnostic (DIAGNOSTIC on stderr), and whatever output
+             was written is finite.
+It fails on anything else: a crash (signal, exit 1), a hang (TIMEOUT_S), a non-finite number in
+the file or a NaN/inf printed in the summary, or an outcome other than the expected one (a case
+that became stable, or unstable, after a change is a behaviour change to look at and then to
+record here).
+"""
+import copy
+import json
+import math
+import os
+import re
+import subprocess
+import sys
+
+import h5py
+import numpy as np
+
+TIMEOUT_S = 60
+DIAGNOSTIC = re.compile(r"error: simulation unstable: simulation became unstable at step \d+ \(t = [^)]*\): "
+                        r".*beyond the limit stability\.(max_speed|max_overlap_ratio)")
+
+BASE = {
+    "name": "extreme",
+    "time": {"duration": 0.3, "output_interval": 0.01, "snapshot_interval": 0.1},
+    "material": {"particle_diameter": 0.25, "youngs_modulus": 1e8},
+    "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
+    "water": {"linear_drag": 0.5},
+    "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, -1]},
+    "structure": {
+        "pier": {"waterline_diameter": 1.0, "cone_angle_deg": 52, "cone_top_z": 0.5, "neck_height": 0.5,
+                 "segments": 24},
+        "velocity": [1.0, 0, 0],
+    },
+}
+
+
+def set_path(scene, path, value):
+    keys = path.split(".")
+    node = scene
+    for k in keys[:-1]:
+        node = node.setdefault(k, {})
+    node[keys[-1]] = value
+
+
+# case -> (overrides {dotted path: value}, expected outcome[, a regex the summary must match])
+CASES = {
+    "stiff_E1e10": ({"material.youngs_modulus": 1e10}, "ok"),
+    "stiff_E1e10_hertz": ({"material.youngs_modulus": 1e10, "material.contact_model": "hertz"}, "ok"),
+    "structure_5ms": ({"structure.velocity": [5.0, 0, 0]}, "ok"),
+    "structure_20ms": ({"structure.velocity": [20.0, 0, 0]}, "ok"),
+    # The same with a speed limit below the pier's speed: the ice it hits passes the limit, so the
+    # run must stop with exit 3, its diagnostic, and a finite file (the rows up to the stop).
+    "structure_20ms_max_speed_5": ({"structure.velocity": [20.0, 0, 0], "stability.max_speed": 5.0}, "unstable"),
+    "bond_1Pa": ({"bonds.tensile_strength": 1.0, "bonds.shear_strength": 1.0}, "ok"),
+    "bond_1e12Pa": ({"bonds.tensile_strength": 1e12, "bonds.shear_strength": 1e12}, "ok"),
+    "friction_0": ({"material.friction": 0.0, "structure.friction": 0.0}, "ok"),
+    "friction_10": ({"material.friction": 10.0, "structure.friction": 10.0}, "ok"),
+    "restitution_0.01": ({"material.restitution": 0.01}, "ok"),
+    "restitution_1": ({"material.restitution": 1.0}, "ok"),
+    "D_eq_h": ({"ice.thickness": 0.25}, "ok"),
+    "D_h_over_10": ({"ice.thickness": 2.5, "ice.length": 1.5, "ice.width": 1.5, "ice.origin": [0, -0.75]}, "ok"),
+    "gravity_zero": ({"gravity": [0, 0, 0]}, "ok"),
+    # A 0.05 m block against the face of a floating 10 m one that pushes it at 1 m/s (mass ratio
+    # 8e6), beside the ice; the small one inside the conversion region but thinner than D. The big
+    # one sits >= 10 m from the pier's axis: blocks whose bounding sphere reaches the pier are
+    # left out (src/sim/blocks.cpp), and the test checks that both were kept.
+    "blocks_0.05_and_10m": ({"blocks.list": [
+        {"half_extents": [5, 5, 5], "position": [1.0, 11.0, -3.97], "velocity": [0, -1, 0]},
+        {"half_extents": [0.025, 0.025, 0.025], "position": [1.0, 5.97, -0.02]}]}, "ok",
+        r"blocks \(hybrid\): 2 at the start"),
+}
+
+
+def scene_for(case):
+    overrides = CASES[case][0]
+    s = copy.deepcopy(BASE)
+    for path, value in overrides.items():
+        set_path(s, path, value)
+    # The pier's cone widens downwards: start it 2 cm from the ice at the ice's floating draft.
+    h = s["ice"]["thickness"]
+    pier = s["structure"]["pier"]
+    draft = 0.92 * h
+    bottom = -(draft + 0.5)
+    pier["cone_bottom_z"] = bottom
+    r_draft = pier["waterline_diameter"] / 2 + draft / math.tan(math.radians(pier["cone_angle_deg"]))
+    r_base = pier["waterline_diameter"] / 2 - bottom / math.tan(math.radians(pier["cone_angle_deg"]))
+    pier["shaft_diameter"] = r_base  # narrower than the base (diameter = base radius)
+    pier["shaft_bottom_z"] = bottom - 1.0
+    s["structure"]["position"] = [s["ice"]["origin"][0] - r_draft - 0.02, 0, 0]
+    return s
+
+
+def non_finite(path):
+    """Names of numeric datasets and attributes holding a NaN or an infinity."""
+    bad = []
+
+    def check(name, value):
+        a = np.asarray(value)
+        if a.dtype.kind in "fc" and not np.all(np.isfinite(a)):
+            bad.append(name)
+        elif a.dtype.names:  # compound
+            for f in a.dtype.names:
+                check(f"{name}.{f}", a[f])
+
+    with h5py.File(path, "r") as f:
+        def visit(name, obj):
+            for k, v in obj.attrs.items():
+                check(f"/{name}@{k}", v)
+            if isinstance(obj, h5py.Dataset):
+                check("/" + name, obj[()])
+        for k, v in f.attrs.items():
+            check(f"/@{k}", v)
+        f.visititems(visit)
+    return bad
+
+
+def main():
+    exe, case, work = sys.argv[1], sys.argv[2], sys.argv[3]
+    expected = CASES[case][1]
+    os.makedirs(work, exist_ok=True)
+    scene_path = os.path.join(work, f"extreme_{case}.json")
+    out = os.path.join(work, f"extreme_{case}.h5")
+    if os.path.exists(out):
+        os.remove(out)
+    with open(scene_path, "w") as f:
+        json.dump(scene_for(case), f, indent=1)
+    try:
+        p = subprocess.run([exe, "run", scene_path, "-o", out], capture_output=True, text=True, timeout=TIMEOUT_S)
+    except subprocess.TimeoutExpired:
+        print(f"FAIL {case}: no result after {TIMEOUT_S} s (hang?)")
+        return 1
+    print(p.stdout[-3000:])
+    print(p.stderr[-3000:], file=sys.stderr)
+    errors = []
+    rc = p.returncode
+    if rc < 0 or rc not in (0, 3):
+        errors.append(f"exit {rc} (signal {-rc})" if rc < 0 else f"exit {rc}")
+    elif expected == "ok" and rc != 0:
+        errors.append(f"expected a complete run, got exit {rc}")
+    elif expected == "unstable":
+        if rc != 3:
+            errors.append(f"expected exit 3 (unstable), got exit {rc}")
+    if rc == 3 and not DIAGNOSTIC.search(p.stderr):
+        errors.append("exit 3 without the instability diagnostic on stderr")
+    if rc == 3 and not os.path.exists(out):
+        errors.append("exit 3 but the output written so far was not kept")
+    if re.search(r"(?<![\w.])-?(nan|inf)(?![\w])", p.stdout, re.I):
+        errors.append("the summary prints a NaN or an infinity")
+    if rc == 0 and not os.path.exists(out):
+        errors.append("exit 0 but no output file")
+    if len(CASES[case]) > 2 and not re.search(CASES[case][2], p.stdout):
+        errors.append(f"the summary does not match {CASES[case][2]!r}")
+    if rc == 0 and os.path.exists(out):
+        # The case must have exercised the pier: it reached the ice and was loaded.
+        with h5py.File(out, "r") as f:
+            peak = float(np.max(np.abs(f["series/force"][()]))) if "series/force" in f else 0.0
+        if not peak > 0:
+            errors.append("the pier never touched the ice (peak force 0): the case tests nothing")
+    if os.path.exists(out):
+        bad = non_finite(out)
+        if bad:
+            errors.append("non-finite values in " + ", ".join(bad[:10]) + (" ..." if len(bad) > 10 else ""))
+    if errors:
+        print(f"FAIL {case}: " + "; ".join(errors))
+        return 1
+    print(f"PASS {case}: exit {rc}, output finite")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
