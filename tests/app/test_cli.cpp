@@ -1,6 +1,7 @@
 // End to end: runs the built `hybridsim` executable on tiny scenes in a temp directory and
 // checks exit codes, the output file and the error messages.
 #include <gtest/gtest.h>
+#include "cli_fixtures.h"
 #include <hdf5.h>
 #include <nlohmann/json.hpp>
 
@@ -28,35 +29,14 @@ using nlohmann::json;
 
 namespace {
 
-struct Result {
-  int rc = -1;
-  std::string out, err;
-};
+using Result = hs::testing::CliResult;
 
-fs::path work_dir() {
-  const fs::path d = fs::temp_directory_path() / ("hs_test_cli_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path work_dir() { return hs::testing::cli_work_dir("cli"); }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using hs::testing::slurp;
 
 /// Runs `hybridsim <args>` in the work directory.
-Result hybridsim(const std::string& args) {
-  const fs::path d = work_dir();
-  const std::string cmd = "cd '" + d.string() + "' && '" HYBRIDSIM_EXE "' " + args + " > out.txt 2> err.txt";
-  const int status = std::system(cmd.c_str());
-  Result r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-  r.out = slurp(d / "out.txt");
-  r.err = slurp(d / "err.txt");
-  return r;
-}
+Result hybridsim(const std::string& args) { return hs::testing::run_hybridsim(work_dir(), args); }
 
 json tiny() {
   return json::parse(R"({

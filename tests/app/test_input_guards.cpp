@@ -2,6 +2,7 @@
 // or give a silently wrong result are refused with exit 2 and the JSON path (or dataset) that
 // causes them; nothing non-finite is written to the output. End to end through `hybridsim`.
 #include <gtest/gtest.h>
+#include "cli_fixtures.h"
 #include <hdf5.h>
 #include <nlohmann/json.hpp>
 
@@ -28,35 +29,15 @@ using nlohmann::json;
 
 namespace {
 
-struct Result {
-  int rc = -1;
-  std::string out, err;
-};
+using Result = hs::testing::CliResult;
 
-fs::path work_dir() {
-  const fs::path d = fs::temp_directory_path() / ("hs_test_guards_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path work_dir() { return hs::testing::cli_work_dir("guards"); }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using hs::testing::slurp;
 
+// An 8 GiB address-space cap: a regressed guard fails the test instead of exhausting the machine.
 Result hybridsim(const std::string& args) {
-  const fs::path d = work_dir();
-  // An 8 GiB address-space cap: a regressed guard fails the test instead of exhausting the machine.
-  const std::string cmd =
-      "cd '" + d.string() + "' && ulimit -v 8000000 && '" HYBRIDSIM_EXE "' " + args + " > out.txt 2> err.txt";
-  const int status = std::system(cmd.c_str());
-  Result r;
-  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
-  r.out = slurp(d / "out.txt");
-  r.err = slurp(d / "err.txt");
-  return r;
+  return hs::testing::run_hybridsim(work_dir(), args, "ulimit -v 8000000 && ");
 }
 
 void write(const std::string& name, const std::string& text) { std::ofstream(work_dir() / name) << text; }

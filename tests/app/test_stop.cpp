@@ -3,6 +3,7 @@
 // flush interval leaves a readable file with the rows up to that flush, and an unstable run
 // (exit 3) ends with a snapshot of its last good step. Runs the built `hybridsim` as a child.
 #include <gtest/gtest.h>
+#include "cli_fixtures.h"
 #include <hdf5.h>
 #include <nlohmann/json.hpp>
 
@@ -29,18 +30,9 @@ using nlohmann::json;
 
 namespace {
 
-fs::path work_dir() {
-  const fs::path d = fs::temp_directory_path() / ("hs_test_stop_" + std::to_string(::getpid()));
-  fs::create_directories(d);
-  return d;
-}
+fs::path work_dir() { return hs::testing::cli_work_dir("stop"); }
 
-std::string slurp(const fs::path& p) {
-  std::ifstream in(p);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
+using hs::testing::slurp;
 
 void write(const std::string& name, const std::string& text) { std::ofstream(work_dir() / name) << text; }
 

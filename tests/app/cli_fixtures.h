@@ -1,0 +1,51 @@
+// Shared by the tests that run the hybridsim binary as a user would (test_cli, test_stop,
+// test_input_guards): a per-process work directory, file helpers, and one run of the binary with
+// its exit code and output.
+#pragma once
+
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <string>
+
+namespace hs::testing {
+
+namespace fs = std::filesystem;
+
+/// The outcome of one `hybridsim` run: exit code (128 + signal if killed by one), stdout, stderr.
+struct CliResult {
+  int rc = -1;
+  std::string out, err;
+};
+
+/// <tmp>/hs_test_<tag>_<pid>, created if needed: one directory per test executable and process.
+inline fs::path cli_work_dir(const std::string& tag) {
+  const fs::path d = fs::temp_directory_path() / ("hs_test_" + tag + "_" + std::to_string(::getpid()));
+  fs::create_directories(d);
+  return d;
+}
+
+inline std::string slurp(const fs::path& p) {
+  std::ifstream in(p);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+/// Runs `hybridsim <args>` in `dir` through /bin/sh, after `prefix` (e.g. "ulimit -v N && ").
+inline CliResult run_hybridsim(const fs::path& dir, const std::string& args, const std::string& prefix = "") {
+  const std::string cmd =
+      "cd '" + dir.string() + "' && " + prefix + "'" HYBRIDSIM_EXE "' " + args + " > out.txt 2> err.txt";
+  const int status = std::system(cmd.c_str());
+  CliResult r;
+  r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+  r.out = slurp(dir / "out.txt");
+  r.err = slurp(dir / "err.txt");
+  return r;
+}
+
+}  // namespace hs::testing
