@@ -167,8 +167,17 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
       << ", critical dt = " << sci(crit, 4) << " s (margin x" << sci(crit / dt, 3) << ")\n";
   out << "steps:            " << sc.total_steps << " for " << s.time.duration << " s; " << rows
       << " series rows, " << snaps << " snapshots\n";
-  out << "estimated memory: " << sci(sim::engine_memory_bytes(b.particles, b.bonds, s.walls.size()) / 1048576.0, 3)
-      << " MiB; output file ~" << sci(file_bytes / 1048576.0, 3) << " MiB\n";
+  const double ice_bytes = sim::engine_memory_bytes(b.particles, b.bonds, s.walls.size());
+  sim::MemoryEstimate blocks;
+  sim::add_blocks(blocks, sim.blocks(), s.material.particle_diameter, s.walls.size());
+  out << "estimated memory: " << sci((ice_bytes + blocks.block_bytes) / 1048576.0, 3) << " MiB";
+  if (blocks.blocks > 0) {
+    out << " (ice " << sci(ice_bytes / 1048576.0, 3) << " MiB, blocks " << sci(blocks.block_bytes / 1048576.0, 3)
+        << " MiB";
+    if (blocks.block_particles > 0) out << " with ~" << sci(blocks.block_particles, 3) << " particles if all convert";
+    out << ")";
+  }
+  out << "; output file ~" << sci(file_bytes / 1048576.0, 3) << " MiB\n";
   out << "estimated time:   " << duration_text(psteps / kParticleStepsPerSecond) << " (" << sci(psteps, 3)
       << " particle-steps at ~" << sci(kParticleStepsPerSecond, 2) << "/s, one core)\n";
   out << "output:           " << (opt.output.empty() ? s.output : opt.output) << "\n";

@@ -149,24 +149,53 @@ double available_memory_bytes() {
   return -1.0;
 }
 
+void add_blocks(MemoryEstimate& est, const BlockSetup& b, double particle_diameter, std::size_t walls) {
+  est.bytes -= est.block_bytes;  // adding twice replaces
+  est.blocks = static_cast<double>(b.blocks.size());
+  est.joints = static_cast<double>(b.joints.size() + b.ice_joints.size());
+  est.block_particles = 0;
+  if (b.def.mode != bridge::ConversionMode::Never) {
+    double volume = 0;
+    for (const auto& bl : b.blocks) volume += 8.0 * bl.def.half_extents.prod();
+    est.block_particles = volume / hcp_cell_volume(particle_diameter);
+  }
+  est.block_bytes = est.blocks * kBytesPerBlock + est.joints * kBytesPerJoint +
+                    engine_memory_bytes(est.block_particles, 6.0 * est.block_particles, walls);
+  est.bytes += est.block_bytes;
+}
+
 void check_memory(const scene::Scene& s, const MemoryEstimate& est, double available, int ranks) {
   if (available < 0) return;
   const double need = est.bytes * std::max(ranks, 1);
   if (need <= available) return;
   const auto gib = [](double b) { return json_fmt(b / 1073741824.0) + " GiB"; };
   const auto& ice = s.ice;
-  throw InputError(
-      "/ice", "the scene needs about " + gib(need) + " of memory" +
-                  (ranks > 1 ? " (" + gib(est.bytes) + " on each of " + std::to_string(ranks) +
-                                   " ranks: every rank builds the whole sheet before keeping its share)"
-                             : std::string()) +
-                  " but only " + gib(available) + " is available (MemAvailable in /proc/meminfo): ~" +
-                  json_fmt(est.particles) + " particles and ~" + json_fmt(est.bonds) +
-                  " bonds from /ice/length = " + json_fmt(ice.length) + " m x /ice/width = " + json_fmt(ice.width) +
-                  " m x /ice/thickness = " + json_fmt(ice.thickness) + " m at /material/particle_diameter = " +
-                  json_fmt(s.material.particle_diameter) +
-                  " m; reduce the sheet or increase the particle diameter (the count goes as 1/D^3), or pass "
-                  "--ignore-memory-limit to try anyway");
+  const bool blocks_dominate = est.block_bytes > est.bytes - est.block_bytes;
+  const std::string head =
+      "the scene needs about " + gib(need) + " of memory" +
+      (ranks > 1 ? " (" + gib(est.bytes) + " on each of " + std::to_string(ranks) +
+                       " ranks: every rank builds the whole scene before keeping its share)"
+                 : std::string()) +
+      " but only " + gib(available) + " is available (MemAvailable in /proc/meminfo): ";
+  const std::string ice_part =
+      "~" + json_fmt(est.particles) + " particles and ~" + json_fmt(est.bonds) + " bonds from /ice/length = " +
+      json_fmt(ice.length) + " m x /ice/width = " + json_fmt(ice.width) + " m x /ice/thickness = " +
+      json_fmt(ice.thickness) + " m at /material/particle_diameter = " + json_fmt(s.material.particle_diameter) + " m";
+  const std::string block_part =
+      gib(est.block_bytes) + " for " + json_fmt(est.blocks) + " rigid blocks and " + json_fmt(est.joints) +
+      " joints from /blocks" + (s.blocks.ridge_file.empty() ? "" : "/ridge_file = \"" + s.blocks.ridge_file + "\"") +
+      (est.block_particles > 0 ? ", and ~" + json_fmt(est.block_particles) +
+                                     " particles if every block is converted (/blocks/conversion = \"" +
+                                     s.blocks.conversion + "\")"
+                               : std::string());
+  const std::string flag = ", or pass --ignore-memory-limit to try anyway";
+  if (blocks_dominate)
+    throw InputError("/blocks", head + block_part + " (the ice: " + ice_part +
+                                    "); keep fewer blocks (/blocks/keep_x, /blocks/keep_y), use a coarser ridge, or "
+                                    "set /blocks/conversion to \"never\" if the blocks need not break" + flag);
+  throw InputError("/ice", head + ice_part + (est.blocks > 0 ? " (the blocks: " + block_part + ")" : std::string()) +
+                               "; reduce the sheet or increase the particle diameter (the count goes as 1/D^3)" +
+                               flag);
 }
 
 namespace {

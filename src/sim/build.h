@@ -7,6 +7,7 @@
 #include "bonded/engine.h"
 #include "mesh/tri_mesh.h"
 #include "scene/scene.h"
+#include "sim/blocks.h"
 
 #include <memory>
 #include <string>
@@ -58,17 +59,37 @@ double engine_memory_bytes(double particles, double bonds, std::size_t walls);
 struct MemoryEstimate {
   double particles = 0;  ///< ice extent / D: length x width / (D^2 sqrt(3)/2) per layer x layers
   double bonds = 0;      ///< ~6 per particle (12 HCP neighbours, each bond shared)
-  double bytes = 0;      ///< engine_memory_bytes of the above, plus the lattice built once
+  double bytes = 0;      ///< engine_memory_bytes of the above, plus the lattice built once, plus blocks
+  // Rigid blocks (add_blocks; zero until the blocks are read):
+  double blocks = 0;           ///< rigid bodies
+  double joints = 0;           ///< freeze joints between blocks and to the ice
+  double block_particles = 0;  ///< particles the blocks can become: sum of volumes / HCP cell volume
+  double block_bytes = 0;      ///< the part of `bytes` the blocks add
 };
 MemoryEstimate memory_estimate(const scene::Scene& s);
+
+/// Bytes one rigid block and one freeze joint hold in the Bullet world and the hybrid system
+/// (body, box shape, broadphase proxy, contact manifolds; a 6-dof spring constraint). Measured:
+/// `hybridsim check` of scenes/ridge_keel_8m_cone.json keeping all 2,970 blocks and 6,680 joints
+/// of its ridge file (conversion "never") holds 23.7 MB more than keeping 3 blocks and no joints;
+/// these figures give 25.8 MB (a run adds contact manifolds, ~1 kB per touching pair).
+inline constexpr double kBytesPerBlock = 6000.0;
+inline constexpr double kBytesPerJoint = 1500.0;
+
+/// Adds the blocks of `b` to `est`: the rigid world, and, unless conversion is off, the particles
+/// (and their ~6 bonds each) every block would become if converted (an upper bound: the pier may
+/// reach every block in the conversion region). `walls` as for engine_memory_bytes.
+void add_blocks(MemoryEstimate& est, const BlockSetup& b, double particle_diameter, std::size_t walls);
 
 /// MemAvailable of /proc/meminfo, bytes; a negative number when it cannot be read.
 double available_memory_bytes();
 
-/// InputError at /ice when `ranks` copies of the estimate (every rank builds the whole scene
-/// before keeping its share) exceed `available` bytes: names the fields that set the size
-/// (/ice/length, /ice/width, /ice/thickness, /material/particle_diameter), the estimate and the
-/// available memory, and --ignore-memory-limit. Nothing happens when `available` < 0 (unknown).
+/// InputError when `ranks` copies of the estimate (every rank builds the whole scene before
+/// keeping its share) exceed `available` bytes: at /ice, naming the fields that set the size
+/// (/ice/length, /ice/width, /ice/thickness, /material/particle_diameter), or at /blocks when the
+/// blocks need more than the ice (naming /blocks/ridge_file, /blocks/keep_x, /blocks/keep_y and
+/// /blocks/conversion); the estimate, the available memory and --ignore-memory-limit. Nothing
+/// happens when `available` < 0 (unknown).
 void check_memory(const scene::Scene& s, const MemoryEstimate& est, double available, int ranks = 1);
 
 // ---- initial overlap ----

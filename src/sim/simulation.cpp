@@ -38,13 +38,18 @@ void Simulation::structure_load(StructureLoad& out) const {
 
 Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {
   Simulation sim;
-  if (!opt.ignore_memory_limit) check_memory(s, memory_estimate(s), available_memory_bytes(), comm.size());
+  MemoryEstimate est = memory_estimate(s);
+  if (!opt.ignore_memory_limit) check_memory(s, est, available_memory_bytes(), comm.size());
   sim.built_ = build_engine(s, opt.check_dt);
   // InputError when the ice starts inside the structure; a warning for shallow overlaps
   const std::string overlap = check_structure_overlap(sim.built_, s);
   bonded::Engine& e = *sim.built_.engine;
   const mesh::TriMesh* structure = sim.has_structure() ? &sim.built_.structure_mesh : nullptr;
   sim.blocks_ = block_setup(s, structure, sim.built_.structure_radius);
+  if (!opt.ignore_memory_limit && !sim.blocks_.blocks.empty()) {  // before the rigid world and any conversion
+    add_blocks(est, sim.blocks_, s.material.particle_diameter, s.walls.size());
+    check_memory(s, est, available_memory_bytes(), comm.size());
+  }
   if (!overlap.empty()) sim.blocks_.warnings.push_back(overlap);
   bridge::HybridDef def = sim.blocks_.def;
   if (!opt.convert) def.mode = bridge::ConversionMode::Never;  // count and check only

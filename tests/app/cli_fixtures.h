@@ -48,4 +48,11 @@ inline CliResult run_hybridsim(const fs::path& dir, const std::string& args, con
   return r;
 }
 
+/// "mpirun -np <np> " with the flags the tests need (allowed as root in CI containers; ranks may
+/// share a core and yield it while waiting, as tests/CMakeLists.txt), to put before a command.
+inline std::string mpirun_prefix(int np) {
+  return "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_mpi_yield_when_idle=1 '" HYBRIDSIM_MPIEXEC
+         "' -np " + std::to_string(np) + " --oversubscribe --bind-to none ";
+}
+
 }  // namespace hs::testing

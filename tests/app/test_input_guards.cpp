@@ -40,6 +40,11 @@ Result hybridsim(const std::string& args) {
   return hs::testing::run_hybridsim(work_dir(), args, "ulimit -v 8000000 && ");
 }
 
+/// The same at 2 ranks (no address-space cap: Open MPI reserves more than 8 GiB of it).
+Result hybridsim_mpi2(const std::string& args) {
+  return hs::testing::run_hybridsim(work_dir(), args, hs::testing::mpirun_prefix(2));
+}
+
 void write(const std::string& name, const std::string& text) { std::ofstream(work_dir() / name) << text; }
 
 bool has(const std::string& text, const std::string& needle) { return text.find(needle) != std::string::npos; }
@@ -189,6 +194,47 @@ TEST(InputGuards, MemoryGuardRefusesWhatDoesNotFitAndNamesTheFields) {
   EXPECT_THROW(hs::sim::check_memory(s, est, 1.5 * est.bytes, 2), hs::InputError);  // every rank builds it all
 }
 
+TEST(InputGuards, BlocksCountInTheMemoryEstimateAndCanBeWhatDoesNotFit) {
+  // Two 2 m x 1 m x 0.5 m blocks (1 m^3 each) and a joint: the rigid world and, with conversion
+  // on, the particles the blocks would become (2 m^3 / the HCP cell volume D^3/sqrt(2)).
+  json j = pier_scene();
+  const hs::scene::Scene s = hs::scene::parse_scene(j, "");
+  const double D = s.material.particle_diameter;
+  hs::sim::BlockSetup b;
+  for (int k = 0; k < 2; ++k) {
+    hs::bridge::BlockInit bi;
+    bi.def.half_extents = hs::Vec3(1.0, 0.5, 0.25);
+    b.blocks.push_back(bi);
+  }
+  b.joints.push_back({});
+  b.def.mode = hs::bridge::ConversionMode::Never;
+  hs::sim::MemoryEstimate est = hs::sim::memory_estimate(s);
+  const double ice_bytes = est.bytes;
+  hs::sim::add_blocks(est, b, D, s.walls.size());
+  EXPECT_EQ(est.blocks, 2.0);
+  EXPECT_EQ(est.joints, 1.0);
+  EXPECT_EQ(est.block_particles, 0.0);  // never converted: the rigid world only
+  EXPECT_DOUBLE_EQ(est.bytes - ice_bytes, 2 * hs::sim::kBytesPerBlock + hs::sim::kBytesPerJoint);
+  b.def.mode = hs::bridge::ConversionMode::Hybrid;
+  hs::sim::add_blocks(est, b, D, s.walls.size());  // replaces the first call's figures
+  EXPECT_NEAR(est.block_particles, 2.0 * std::sqrt(2.0) / (D * D * D), 1e-9 * est.block_particles);
+  EXPECT_GT(est.block_bytes, 100.0 * est.block_particles);
+  EXPECT_DOUBLE_EQ(est.bytes, ice_bytes + est.block_bytes);
+  // Blocks that need more than the ice: the error is at /blocks and names what sets their size.
+  est.block_bytes = 10 * ice_bytes;
+  est.bytes = 11 * ice_bytes;
+  try {
+    hs::sim::check_memory(s, est, 5 * ice_bytes);
+    ADD_FAILURE() << "no error";
+  } catch (const hs::InputError& e) {
+    const std::string m = e.what();
+    EXPECT_EQ(e.path(), "/blocks");
+    for (const char* field : {"rigid blocks", "/blocks/conversion", "/blocks/keep_x", "/ice/length", "MemAvailable",
+                              "--ignore-memory-limit"})
+      EXPECT_TRUE(has(m, field)) << field << " in " << m;
+  }
+}
+
 TEST(InputGuards, AKilometreSheetIsRefusedByCheckBeforeAllocating) {
   // 1000 m x 1000 m, D = 0.2 m: ~1.2e8 particles, under the old fixed count (2e8) that let
   // `check` allocate it all and die of bad_alloc or the OOM killer.
@@ -230,6 +276,11 @@ TEST(InputGuards, ANaNInTheRidgeFileIsExit2ForCheckAndRun) {
     EXPECT_EQ(r.rc, 2) << cmd << ": " << r.err;
     EXPECT_TRUE(has(r.err, "/ridge/blocks/position row 1 column 1")) << cmd << ": " << r.err;
   }
+  // Under MPI every rank reads the file and refuses alike: exit 2, no crash, no output file.
+  const Result r = hybridsim_mpi2("run nan_blocks.json -o nan2.h5");
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_TRUE(has(r.err, "/ridge/blocks/position row 1 column 1")) << r.err;
+  EXPECT_FALSE(fs::exists(work_dir() / "nan2.h5"));
 }
 
 // ---------------------------------------------------------------- defect 6: initial overlap
@@ -251,6 +302,10 @@ TEST(InputGuards, AStructureOverlappingTheIceIsReportedByCheckAndRefusedByRun) {
     EXPECT_TRUE(has(r.err, "Place the structure clear of the sheet")) << r.err;
   }
   EXPECT_FALSE(fs::exists(work_dir() / "enclosed.h5"));
+  r = hybridsim_mpi2("run enclosed.json -o enclosed2.h5");
+  EXPECT_EQ(r.rc, 2) << r.out << r.err;
+  EXPECT_TRUE(has(r.err, "error: /structure/position: ")) << r.err;
+  EXPECT_FALSE(fs::exists(work_dir() / "enclosed2.h5"));
   // Partly overlapping: the cone's edge 0.5 m into the sheet.
   j["structure"]["position"] = json::array({-6.5, 0, 0});
   write("overlap.json", j.dump());

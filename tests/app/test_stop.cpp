@@ -220,9 +220,7 @@ TEST(Stop, KillNineAfterTheWallClockFlushLeavesTheRowsFlushed) {
 TEST(Stop, SigtermToOneMpiRankStopsAllRanksAtTheSameStep) {
   write("long.json", long_scene().dump());
   fs::remove(work_dir() / "mpi.h5");
-  // (allowed as root in CI containers; waiting ranks yield the core, as tests/CMakeLists.txt)
-  const std::string mpirun = "env OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
-                             "OMPI_MCA_mpi_yield_when_idle=1 '" HYBRIDSIM_MPIEXEC "' -np 2 --oversubscribe --bind-to none ";
+  const std::string mpirun = hs::testing::mpirun_prefix(2);
   // --flush-interval 0.5: flushes decided collectively on the way
   const Child c = start("mpi", "long.json -o mpi.h5 --flush-interval 0.5", mpirun);
   ASSERT_GT(c.pid, 0);
