@@ -5,6 +5,9 @@
 #include "bridge/hybrid.h"
 #include "mesh/tri_mesh.h"
 #include "scene/scene.h"
+#include "sim/iso_inputs.h"
+
+#include <optional>
 
 #include <string>
 #include <vector>
@@ -17,6 +20,7 @@ struct BlockSetup {
   std::vector<bridge::JointInit> joints;         ///< ridge joints between kept blocks
   std::vector<bridge::IceJointInit> ice_joints;  ///< ridge joints from kept blocks to the ice sheet
   std::size_t ridge_blocks_in_file = 0;          ///< before keep_x / keep_y / keep_sail
+  std::optional<RidgeKeel> ridge;                ///< the ridge file's keel (ISO inputs), if there is one
   std::vector<std::string> warnings;
 };
 
