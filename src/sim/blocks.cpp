@@ -172,6 +172,11 @@ void drop_blocks_inside_pier(BlockSetup& out, const scene::StructureDef& st) {
 
 }  // namespace
 
+std::optional<RidgeKeel> scene_ridge_keel(const scene::Scene& s) {
+  if (!s.has_blocks || s.blocks.ridge_file_path.empty()) return std::nullopt;
+  return ridge_keel(io::load_ridge(s.blocks.ridge_file_path), s.blocks.ridge_file_path);
+}
+
 BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius) {
   BlockSetup out;
   out.def = hybrid_def(s);

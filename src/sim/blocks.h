@@ -30,4 +30,8 @@ struct BlockSetup {
 /// "blocks" section gives an empty block list (no rigid world).
 BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius);
 
+/// The keel of the scene's ridge file (BlockSetup::ridge without building anything), or none
+/// when the scene has no ridge file. InputError at /blocks/ridge_file for a missing or bad file.
+std::optional<RidgeKeel> scene_ridge_keel(const scene::Scene& s);
+
 }  // namespace hs::sim

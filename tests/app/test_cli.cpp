@@ -321,6 +321,12 @@ TEST(CliStructure, IsoCommandOnPlainInputsAndOnAScene) {
   EXPECT_EQ(o2.at("inputs").at("flexural_strength").get<double>(), 0.6e6);
   EXPECT_EQ(o2.at("inputs").at("thickness").get<double>(), 0.6);
   EXPECT_GT(o2.at("F_H").get<double>(), 0.0);
+  // On a scene it says where each input came from (no run: the nominal thickness).
+  EXPECT_EQ(o2.at("sources").at("rubble_height"), "scene");
+  EXPECT_EQ(o2.at("sources").at("thickness"), "scene");
+  EXPECT_EQ(o2.at("sources").at("keel_depth"), "default");
+  EXPECT_EQ(o2.at("sources").size(), hs::analysis::iso_input_keys().size());
+  EXPECT_FALSE(o.contains("sources"));  // plain inputs: every key is the file's or the default
 
   write("iso_bad.json", R"({"thicknes": 0.9})");
   const Result r3 = hybridsim("iso iso_bad.json");
