@@ -86,10 +86,16 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
           an.has_iso = false;
           an.iso_note = "ISO 19906 estimate not computed: input " + r.key + " is not finite";
         }
-      analysis::IsoInputs top = an.iso_in;
-      top.rubble_height = f.max_pile;
-      const double fh = analysis::compute_iso(top).F_H;
-      an.iso_F_H_top_particle = std::isfinite(fh) ? fh : 0.0;
+      if (an.has_iso) {  // beside it: F_H with the old pile height, the highest particle
+        analysis::IsoInputs top = an.iso_in;
+        top.rubble_height = f.max_pile;
+        try {
+          const double fh = analysis::compute_iso(top).F_H;
+          an.iso_F_H_top_particle = std::isfinite(fh) ? fh : 0.0;
+        } catch (const InputError&) {
+          an.iso_F_H_top_particle = 0.0;
+        }
+      }
     } catch (const InputError& err) {
       an.iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
     }
