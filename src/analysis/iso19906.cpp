@@ -9,6 +9,7 @@
 #include <cmath>
 #include <numbers>
 #include <sstream>
+#include <stdexcept>
 #include <utility>
 
 namespace hs::analysis {
@@ -24,7 +25,7 @@ struct Field {
 };
 
 /// JSON key <-> field, in declaration order; the one list that keeps names in step.
-constexpr std::array<Field, 17> kFields{{
+constexpr std::array<Field, 18> kFields{{
     {"thickness", &IsoInputs::thickness, "m"},
     {"waterline_diameter", &IsoInputs::waterline_diameter, "m"},
     {"flexural_strength", &IsoInputs::flexural_strength, "Pa"},
@@ -42,6 +43,7 @@ constexpr std::array<Field, 17> kFields{{
     {"rubble_slope_deg", &IsoInputs::rubble_slope_deg, "deg"},
     {"rubble_friction_angle_deg", &IsoInputs::rubble_friction_angle_deg, "deg"},
     {"keel_depth", &IsoInputs::keel_depth, "m"},
+    {"keel_width", &IsoInputs::keel_width, "m"},
 }};
 
 constexpr double kDeg = std::numbers::pi / 180.0;
@@ -95,6 +97,12 @@ const std::vector<std::string>& iso_input_keys() {
   return keys;
 }
 
+std::string iso_input_unit(const std::string& key) {
+  for (const auto& f : kFields)
+    if (key == f.key) return f.unit;
+  throw std::out_of_range("not an ISO 19906 input: " + key);
+}
+
 void validate_iso_inputs(const IsoInputs& in, const std::string& base_path) {
   const Checker c(base_path);
   for (const auto& f : kFields) c.finite(f.key, in.*f.member);
@@ -127,6 +135,7 @@ void validate_iso_inputs(const IsoInputs& in, const std::string& base_path) {
   if (!(in.rubble_friction_angle_deg >= 0.0 && in.rubble_friction_angle_deg < 90.0))
     c.fail("rubble_friction_angle_deg", in.rubble_friction_angle_deg, "must be in [0, 90) degrees");
   c.non_negative("keel_depth", in.keel_depth, "(m; 0 = no keel)");
+  c.non_negative("keel_width", in.keel_width, "(m; 0 = waterline_diameter)");
 
   const double a = in.cone_angle_deg * kDeg;
   const double mu = in.friction_ice_structure;
@@ -169,6 +178,7 @@ IsoResult compute_iso(const IsoInputs& in) {
   const double rho_i = in.ice_density, rho_w = in.water_density, g = in.gravity;
   const double h_r = in.rubble_height, e = in.rubble_porosity, c = in.rubble_cohesion;
   const double h_k = in.keel_depth;
+  const double w_k = in.keel_width > 0.0 ? in.keel_width : w;
 
   const double cot_a = 1.0 / tan(a), cot_th = 1.0 / tan(th);
   const double slope_factor = 1.0 - tan(th) / tan(a);   // (1 - tan th / tan a)
@@ -192,7 +202,7 @@ IsoResult compute_iso(const IsoInputs& in) {
   const double mu_phi = tan(pi / 4.0 + phi / 2.0);
   const double gamma_e = (1.0 - e) * (rho_w - rho_i) * g;  // buoyant weight density of the keel
   r.F_K = h_k > 0.0
-              ? mu_phi * h_k * w * (h_k * mu_phi * gamma_e / 2.0 + 2.0 * c) * (1.0 + h_k / (6.0 * w))
+              ? mu_phi * h_k * w_k * (h_k * mu_phi * gamma_e / 2.0 + 2.0 * c) * (1.0 + h_k / (6.0 * w_k))
               : 0.0;
   r.F_total = r.F_H + r.F_K;
   return r;

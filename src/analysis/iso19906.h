@@ -19,8 +19,9 @@
 //                                                                       lifting the rubble
 //   H_T = 1.5 w h^2 rho_i g cos a / (sin a - mu cos a)                  turning blocks at the top
 //   F_H = (H_B + H_P + H_R + H_L + H_T) / (1 - H_B / (sigma_f l h))     total horizontal load
-// Keel: Dolgopolov et al. (1975) plug failure, as used by ISO 19906:
-//   F_K = mu_phi h_k w (h_k mu_phi gamma_e / 2 + 2 c)(1 + h_k / (6 w)),
+// Keel: Dolgopolov et al. (1975) plug failure, as used by ISO 19906, with w_k the width of
+// the structure the keel meets (keel_width; 0 = the waterline diameter w):
+//   F_K = mu_phi h_k w_k (h_k mu_phi gamma_e / 2 + 2 c)(1 + h_k / (6 w_k)),
 //   mu_phi = tan(45 deg + phi/2),  gamma_e = (1 - e)(rho_w - rho_i) g;  F_K = 0 when h_k = 0.
 // Ridge load (ISO): consolidated layer as level ice of the layer's thickness h, plus the keel:
 //   F_total = F_H + F_K.
@@ -29,7 +30,7 @@
 //
 // Validity (checked, InputError naming the JSON key): positive h, w, sigma_f, E, rho_i, g;
 // rho_i < rho_w; 0 <= nu < 0.5; 0 < a < 90 deg; 0 < th < a; 0 <= phi < 90 deg; porosity in
-// [0, 1); non-negative mu, mu_i, h_r, c, h_k; cos a - mu sin a > 0 (otherwise the cone is
+// [0, 1); non-negative mu, mu_i, h_r, c, h_k, w_k; cos a - mu sin a > 0 (otherwise the cone is
 // self-locking: the ice cannot slide up); sin a - mu cos a > 0 (otherwise blocks at the top
 // cannot slide back down and H_T is undefined); 1 - H_B/(sigma_f l h) > 0.
 #pragma once
@@ -62,6 +63,7 @@ struct IsoInputs {
   double rubble_slope_deg = 40.0;          ///< th, rubble pile slope from horizontal, deg (< a)
   double rubble_friction_angle_deg = 30.0; ///< phi, rubble (and keel) internal friction angle, deg
   double keel_depth = 0.0;                 ///< h_k, keel depth below the consolidated layer, m
+  double keel_width = 0.0;                 ///< w_k, structure width the keel meets, m; 0 = waterline_diameter
 };
 
 /// The load components (N) and the derived quantities of the estimate.
@@ -82,6 +84,10 @@ struct IsoResult {
 
 /// The JSON keys of IsoInputs, in declaration order.
 const std::vector<std::string>& iso_input_keys();
+
+/// The SI unit of an input ("m", "Pa", "deg", "kg/m^3", "m/s^2"; "" for a dimensionless one);
+/// std::out_of_range for a key that is not one of iso_input_keys().
+std::string iso_input_unit(const std::string& key);
 
 /// Throws hs::InputError naming `base_path + "/<key>"` if the inputs are outside the
 /// validity range above.

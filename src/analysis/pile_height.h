@@ -9,7 +9,10 @@
 
 #include "common/types.h"
 
+#include <algorithm>
+#include <cmath>
 #include <cstddef>
+#include <vector>
 
 namespace hs::analysis {
 
@@ -32,6 +35,53 @@ inline double pile_height(const PileProbe& p, const Vec3* x, const double* r, st
     top = std::max(top, x[i].z() + r[i]);
   }
   return top - p.water_level;
+}
+
+// ISO-consistent pile height: ISO 19906 takes a pile of one height h_r across the whole
+// waterline width w of the cone. The DEM pile is highest at the cone's upstream face and lower
+// at its sides, so its single highest particle overstates h_r. The band probe measures the
+// pile's crest across the width and averages it:
+//   frame: u = (x - axis) . upstream (horizontal, towards the incoming ice),
+//          v = (x - axis) . (z x upstream) (horizontal, across);
+//   band:  0 < u <= reach (the upstream half: the cone face and the pile in front of it),
+//          |v| <= half_width (the waterline radius w/2);
+//   bins:  the band's width is cut into `bins` equal strips across v; a particle belongs to
+//          the strip of its centre;
+//   crest: per strip, the highest ice above the waterline, max(z + r) - water_level over the
+//          strip's particles, 0 when none is above the water;
+//   mean:  the plain average of the crests over all strips (empty strips count 0).
+// The crests are a max per strip, so ranks combine theirs with an element-wise max.
+struct PileBand {
+  Vec3 axis_point = Vec3::Zero();  ///< a point on the vertical pier axis (world), m
+  Vec3 upstream = Vec3::UnitX();   ///< horizontal unit vector towards the incoming ice
+  double half_width = 7.0;         ///< w/2, m
+  double reach = 10.0;             ///< u extent from the axis, m (cone radius + distance ahead)
+  double water_level = 0.0;        ///< m
+  std::size_t bins = 1;            ///< strips across the width, >= 1
+};
+
+/// Per-strip crest heights (size p.bins, m above the water level, >= 0) of `n` particles.
+inline std::vector<double> pile_crests(const PileBand& p, const Vec3* x, const double* r, std::size_t n) {
+  const std::size_t bins = std::max<std::size_t>(p.bins, 1);
+  std::vector<double> crest(bins, 0.0);
+  const Vec3 up = Vec3(p.upstream.x(), p.upstream.y(), 0.0).normalized();
+  const double ax = up.x(), ay = up.y();  // across = (-ay, ax)
+  const double strip = 2.0 * p.half_width / static_cast<double>(bins);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double dx = x[i].x() - p.axis_point.x(), dy = x[i].y() - p.axis_point.y();
+    const double u = dx * ax + dy * ay, v = -dx * ay + dy * ax;
+    if (u <= 0.0 || u > p.reach || std::abs(v) > p.half_width) continue;
+    const auto k = std::min(bins - 1, static_cast<std::size_t>(std::floor((v + p.half_width) / strip)));
+    crest[k] = std::max(crest[k], x[i].z() + r[i] - p.water_level);
+  }
+  return crest;
+}
+
+/// Mean of the crests (m).
+inline double mean_crest(const std::vector<double>& crest) {
+  double sum = 0.0;
+  for (const double c : crest) sum += c;
+  return crest.empty() ? 0.0 : sum / static_cast<double>(crest.size());
 }
 
 }  // namespace hs::analysis

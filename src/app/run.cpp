@@ -294,9 +294,15 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
 int iso_command(const RunOptions& opt, std::ostream& out) {
   nlohmann::json j = scene::read_json_file(opt.scene_path);
   analysis::IsoInputs in;
+  nlohmann::json sources;
   if (j.is_object() && (j.contains("time") || j.contains("ice"))) {
+    // A scene without a run: nominal thickness, h_r = analysis.rubble_height, the ridge file's keel.
     const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
-    in = sim::iso_inputs(s, s.analysis.rubble_height);
+    sim::IsoMeasured m;
+    m.ridge = sim::scene_ridge_keel(s);
+    const sim::IsoAssembly a = sim::assemble_iso_inputs(s, m);
+    in = a.in;
+    for (const auto& r : a.records) sources[r.key] = sim::to_string(r.source);
   } else {
     if (!opt.overrides.empty())
       throw InputError("--set", "--set applies to scenes; edit the ISO object instead");
@@ -305,6 +311,7 @@ int iso_command(const RunOptions& opt, std::ostream& out) {
   const analysis::IsoResult r = analysis::compute_iso(in);
   nlohmann::json o = analysis::iso_to_json(r);
   o["inputs"] = analysis::iso_inputs_to_json(in);
+  if (!sources.is_null()) o["sources"] = sources;
   out << o.dump(2) << "\n";
   return 0;
 }

@@ -80,11 +80,25 @@ void print_pieces_and_iso(std::ostream& out, const sim::RunReport& an, const sim
       << (an.L_c_note.empty() ? "L_c = " + sci(an.L_c, 4) + " m" : an.L_c_note) << "\n";
   if (an.has_iso) {
     const auto& r = an.iso;
-    out << "  ISO 19906 (h = " << sci(an.iso_in.thickness, 4) << " m, h_r = " << sci(f.max_pile, 4)
-        << " m): H_B " << sci(r.H_B, 4) << ", H_P " << sci(r.H_P, 4) << ", H_R " << sci(r.H_R, 4) << ", H_L "
-        << sci(r.H_L, 4) << ", H_T " << sci(r.H_T, 4) << " N\n";
+    const auto src = [&](const char* key) {
+      for (const auto& rec : an.iso_records)
+        if (rec.key == key) return std::string(" (") + sim::to_string(rec.source) + ")";
+      return std::string();
+    };
+    out << "  ISO 19906 (h = " << sci(an.iso_in.thickness, 4) << " m" << src("thickness") << ", h_r = "
+        << sci(an.iso_in.rubble_height, 4) << " m" << src("rubble_height") << ", sigma_f = "
+        << sci(an.iso_in.flexural_strength, 4) << " Pa" << src("flexural_strength") << ", e = "
+        << sci(an.iso_in.rubble_porosity, 3) << src("rubble_porosity") << ", h_k = " << sci(an.iso_in.keel_depth, 4)
+        << " m" << src("keel_depth") << "): H_B " << sci(r.H_B, 4) << ", H_P " << sci(r.H_P, 4) << ", H_R "
+        << sci(r.H_R, 4) << ", H_L " << sci(r.H_L, 4) << ", H_T " << sci(r.H_T, 4) << ", F_K " << sci(r.F_K, 4)
+        << " N\n";
     out << "  DEM peak horizontal force " << sci(f.peak_h, 4) << " N vs ISO F_H " << sci(r.F_H, 4)
-        << " N: DEM/ISO = " << sci(r.F_H > 0 ? f.peak_h / r.F_H : 0.0, 3) << "\n";
+        << " N: DEM/ISO = " << sci(r.F_H > 0 ? f.peak_h / r.F_H : 0.0, 3);
+    if (an.iso_F_H_top_particle > 0)
+      out << " (with the highest particle as h_r, " << sci(f.max_pile, 4) << " m: F_H "
+          << sci(an.iso_F_H_top_particle, 4) << " N, DEM/ISO = " << sci(f.peak_h / an.iso_F_H_top_particle, 3)
+          << ")";
+    out << "\n";
   } else if (!an.iso_note.empty()) {
     out << "  " << an.iso_note << "\n";
   }
@@ -138,7 +152,11 @@ void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulati
         << " N at t = " << sci(f.peak_h_time, 4) << " s (output-interval means; single-step peak "
         << sci(f.peak_step, 4) << " N at t = " << sci(f.peak_step_time, 4) << " s); mean force ("
         << sci(mean.x(), 4) << ", " << sci(mean.y(), 4) << ", " << sci(mean.z(), 4) << ") N\n";
-    out << "  max pile height " << sci(f.max_pile, 4) << " m at t = " << sci(f.max_pile_time, 4) << " s\n";
+    out << "  max pile height " << sci(f.max_pile, 4) << " m at t = " << sci(f.max_pile_time, 4) << " s";
+    if (f.has_pile_mean)
+      out << "; ISO-consistent (mean over the waterline width) " << sci(f.max_pile_mean, 4) << " m at t = "
+          << sci(f.max_pile_mean_time, 4) << " s";
+    out << "\n";
   }
   if (sim.has_blocks()) print_blocks(out, sim);
   print_pieces_and_iso(out, an, f);

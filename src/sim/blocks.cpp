@@ -4,6 +4,7 @@
 #include "mesh/pier.h"
 #include "io/ridge_file.h"
 
+#include <algorithm>
 #include <cmath>
 #include <sstream>
 
@@ -74,12 +75,32 @@ void add_block(BlockSetup& out, const Vec3& half, const Vec3& x, const Quat& q, 
   out.blocks.push_back(bi);
 }
 
+/// The keel as the ridge file gives it (whole ridge, before keep_x / keep_y and the offset):
+/// achieved keel depth and porosity (RidgeStats), and the depth of the consolidated layer's
+/// underside (its fixed ice boxes; the level ice's without a consolidated layer; the
+/// flotation draft of the definition's layer when the file has no ice boxes).
+RidgeKeel ridge_keel(const rigid::RidgeResult& r, const std::string& path) {
+  RidgeKeel k;
+  k.path = path;
+  k.keel_depth = r.stats.keel_depth_achieved;
+  k.porosity = r.stats.keel_porosity;
+  double bottom[2] = {-1.0, -1.0};  // deepest underside of the level ice (0) and the layer (1) boxes
+  for (const auto& box : r.ice)
+    if (box.part == 0 || box.part == 1)
+      bottom[box.part] = std::max(bottom[box.part], -(box.position.z() - box.half_extents.z()));
+  k.layer_bottom_depth = bottom[1] >= 0 ? bottom[1]
+                         : bottom[0] >= 0 ? bottom[0]
+                                          : r.def.consolidated_layer_thickness * r.def.ice_density / r.def.water_density;
+  return k;
+}
+
 /// The ridge file's blocks inside keep_x / keep_y (and its sail unless keep_sail is false),
 /// shifted by the offset, with their joints to each other and to the ice sheet.
 void add_ridge_blocks(BlockSetup& out, const scene::Scene& s) {
   const auto& b = s.blocks;
   const rigid::RidgeResult r = io::load_ridge(b.ridge_file_path);
   out.ridge_blocks_in_file = r.blocks.size();
+  out.ridge = ridge_keel(r, b.ridge_file_path);
   std::vector<long> kept(r.blocks.size(), -1);  // ridge row -> index in out.blocks
   for (std::size_t k = 0; k < r.blocks.size(); ++k) {
     const auto& rb = r.blocks[k];
@@ -150,6 +171,11 @@ void drop_blocks_inside_pier(BlockSetup& out, const scene::StructureDef& st) {
 }
 
 }  // namespace
+
+std::optional<RidgeKeel> scene_ridge_keel(const scene::Scene& s) {
+  if (!s.has_blocks || s.blocks.ridge_file_path.empty()) return std::nullopt;
+  return ridge_keel(io::load_ridge(s.blocks.ridge_file_path), s.blocks.ridge_file_path);
+}
 
 BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius) {
   BlockSetup out;

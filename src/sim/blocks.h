@@ -5,6 +5,9 @@
 #include "bridge/hybrid.h"
 #include "mesh/tri_mesh.h"
 #include "scene/scene.h"
+#include "sim/iso_inputs.h"
+
+#include <optional>
 
 #include <string>
 #include <vector>
@@ -17,6 +20,7 @@ struct BlockSetup {
   std::vector<bridge::JointInit> joints;         ///< ridge joints between kept blocks
   std::vector<bridge::IceJointInit> ice_joints;  ///< ridge joints from kept blocks to the ice sheet
   std::size_t ridge_blocks_in_file = 0;          ///< before keep_x / keep_y / keep_sail
+  std::optional<RidgeKeel> ridge;                ///< the ridge file's keel (ISO inputs), if there is one
   std::vector<std::string> warnings;
 };
 
@@ -25,5 +29,9 @@ struct BlockSetup {
 /// `structure_radius` its widest radius (the default conversion region). A scene without a
 /// "blocks" section gives an empty block list (no rigid world).
 BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius);
+
+/// The keel of the scene's ridge file (BlockSetup::ridge without building anything), or none
+/// when the scene has no ridge file. InputError at /blocks/ridge_file for a missing or bad file.
+std::optional<RidgeKeel> scene_ridge_keel(const scene::Scene& s);
 
 }  // namespace hs::sim

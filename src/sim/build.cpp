@@ -7,6 +7,7 @@
 #include "json/reader.h"
 #include "mesh/pier.h"
 #include "mesh/sphere_mesh_contact.h"
+#include "sim/iso_inputs.h"
 
 #include <algorithm>
 #include <cctype>
@@ -89,30 +90,9 @@ double structure_radius(const scene::Scene& s, const mesh::TriMesh& m) {
 }
 
 analysis::IsoInputs iso_inputs(const scene::Scene& s, double rubble_height) {
-  if (!s.has_structure)
-    throw InputError("/structure", "the ISO 19906 estimate needs a cone: add \"structure\": {\"type\": \"pier\"}");
-  if (s.structure.type != "pier")
-    throw InputError("/structure/type", "the ISO 19906 estimate needs the parametric pier (waterline diameter and "
-                                        "cone angle); a mesh structure does not give them");
-  analysis::IsoInputs in;
-  in.thickness = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
-  in.waterline_diameter = s.structure.pier.waterline_diameter;
-  in.cone_angle_deg = s.structure.pier.cone_angle_deg;
-  in.flexural_strength = s.analysis.flexural_strength;
-  in.youngs_modulus = s.material.youngs_modulus;
-  in.poisson_ratio = s.material.poisson_ratio;
-  in.friction_ice_structure = s.structure.friction;
-  in.friction_ice_ice = s.analysis.friction_ice_ice;
-  in.ice_density = s.material.density;
-  in.water_density = s.water.density;
-  in.gravity = s.gravity.norm();
-  in.rubble_height = rubble_height;
-  in.rubble_porosity = s.analysis.rubble_porosity;
-  in.rubble_cohesion = s.analysis.rubble_cohesion;
-  in.rubble_slope_deg = s.analysis.rubble_slope_deg > 0 ? s.analysis.rubble_slope_deg : 0.8 * in.cone_angle_deg;
-  in.rubble_friction_angle_deg = s.analysis.rubble_friction_angle_deg;
-  in.keel_depth = s.analysis.keel_depth;
-  return in;
+  IsoMeasured m;
+  m.rubble_height = rubble_height;
+  return assemble_iso_inputs(s, m).in;
 }
 
 double engine_memory_bytes(double particles, double bonds, std::size_t walls) {
@@ -342,6 +322,7 @@ Built build_engine(const scene::Scene& s, bool check_dt) {
     e.add_particle(p);
   }
   out.particles = e.particles().size();
+  out.lattice_thickness = lattice_mean_thickness(e.particles(), s);
   out.bonds = e.bond_touching(0, e.particles().size(), BondKind::Lattice);
 
   for (const auto& w : s.walls) e.add_wall(PlaneWall{w.name, w.point, w.normal, w.velocity, w.friction});

@@ -36,6 +36,7 @@ struct Built {
   double structure_radius = 0.0;        ///< see structure_radius()
   std::vector<std::string> structure_parts;
   mesh::TriMesh structure_mesh;         ///< the structure's mesh as built (the engine keeps its own copy)
+  double lattice_thickness = 0.0;       ///< m, lattice_mean_thickness of the sheet as built (ISO input)
 };
 // ---- structure ----
 /// The structure's mesh in its own frame (make_pier or the loaded file). InputError at
@@ -44,9 +45,9 @@ mesh::TriMesh structure_mesh(const scene::Scene& s);
 /// Horizontal radius of the structure's widest section (pier: the cone base radius; mesh:
 /// half the larger horizontal bounding-box side), m.
 double structure_radius(const scene::Scene& s, const mesh::TriMesh& m);
-/// ISO 19906 inputs for the scene's ice and pier (docs/scene.md, "analysis"): thickness of
-/// the consolidated layer if there is one, else of the level ice; E, nu, densities, g from the
-/// scene; waterline diameter and cone angle from the pier; mu = structure friction.
+/// ISO 19906 inputs for the scene's ice and pier without a run (`hybridsim iso SCENE`):
+/// assemble_iso_inputs (sim/iso_inputs.h) with only the rubble height given, so the nominal
+/// thickness of the consolidated layer if there is one, else of the level ice.
 /// InputError at /structure when the scene has no parametric pier.
 analysis::IsoInputs iso_inputs(const scene::Scene& s, double rubble_height);
 

@@ -31,6 +31,8 @@ struct RunFigures {
   double peak_step = 0.0, peak_step_time = 0.0;   ///< structure, horizontal |F| of single steps
   Vec3 mean_force = Vec3::Zero();                 ///< structure, mean over all steps
   double max_pile = 0.0, max_pile_time = 0.0;     ///< m, s
+  bool has_pile_mean = false;                     ///< /series/pile_height_mean was recorded (pier)
+  double max_pile_mean = 0.0, max_pile_mean_time = 0.0;  ///< m, s: its peak
   std::uint64_t rows = 0, snapshots = 0;         ///< written to the run file
 };
 

@@ -2,9 +2,12 @@
 #include "sim/recorder.h"
 
 #include "analysis/pile_height.h"
+#include "common/ice_formulas.h"
+#include "json/reader.h"
 #include "io/run_file.h"
 #include "parallel/comm.h"
 
+#include <algorithm>
 #include <cmath>
 #include <iterator>
 #include <string>
@@ -207,6 +210,42 @@ class PileHeightRecorder : public Recorder {
   double max_ = 0.0, max_time_ = 0.0;
 };
 
+// ---- /series/pile_height_mean: the ISO-consistent pile height (pier only)
+class PileMeanRecorder : public Recorder {
+ public:
+  PileMeanRecorder(const analysis::PileBand& band, const par::Comm& comm) : band_(band), comm_(comm) {}
+  void declare(io::RunFile& f) override {
+    id_ = f.add_series("/series/pile_height_mean", 1, "m",
+                       "ISO-consistent rubble pile height: the crest of the ice above the waterline in each of " +
+                           std::to_string(band_.bins) + " strips across the waterline width (" +
+                           json_fmt(2.0 * band_.half_width) + " m) upstream of the pier axis, up to " +
+                           json_fmt(band_.reach) + " m ahead of it, averaged over the strips (docs/output.md)");
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    band_.axis_point = sim.structure_position();
+    const auto& ps = sim.engine().particles();
+    std::vector<double> crest = analysis::pile_crests(band_, ps.x.data(), ps.radius.data(), ps.owned());
+    comm_.max(crest.data(), static_cast<int>(crest.size()));
+    const double h = analysis::mean_crest(crest);
+    f.append(id_, &h);
+    if (h > max_) {
+      max_ = h;
+      max_time_ = sim.engine().time();
+    }
+  }
+  void figures(RunFigures& fig) const override {
+    fig.has_pile_mean = true;
+    fig.max_pile_mean = max_;
+    fig.max_pile_mean_time = max_time_;
+  }
+
+ private:
+  analysis::PileBand band_;
+  const par::Comm& comm_;
+  int id_ = -1;
+  double max_ = 0.0, max_time_ = 0.0;
+};
+
 // ---- /series/blocks/...: the rigid blocks
 class BlocksRecorder : public Recorder {
  public:
@@ -352,6 +391,25 @@ analysis::PileProbe pile_probe(const Simulation& sim, const scene::Scene& s) {
   return probe;
 }
 
+/// The band of /series/pile_height_mean (analysis/pile_height.h): the waterline width of the
+/// pier, from its axis up to the waterline radius + L_c ahead (L_c of the ISO sheet: the
+/// lattice's thickness, the scene's E, nu, rho_w, |g|; the pile's toe lies well within it for
+/// slopes above ~10 deg); where L_c is not defined (no gravity) up to the widest radius + D, as
+/// /series/pile_height. Strips about one particle diameter wide.
+analysis::PileBand pile_band(const Simulation& sim, const scene::Scene& s) {
+  analysis::PileBand band;
+  const Vec3& v = s.structure.velocity;
+  band.upstream = Vec3(v.x(), v.y(), 0.0).norm() > 0 ? Vec3(v.x(), v.y(), 0.0).normalized() : Vec3::UnitX();
+  band.half_width = 0.5 * s.structure.pier.waterline_diameter;
+  band.water_level = s.water.enabled ? s.water.level : 0.0;
+  const double D = s.material.particle_diameter;
+  const double L_c = characteristic_length(s.material.youngs_modulus, sim.built().lattice_thickness, s.water.density,
+                                           s.gravity.norm(), s.material.poisson_ratio);
+  band.reach = std::isfinite(L_c) && L_c > 0 ? band.half_width + L_c : sim.structure_radius() + D;
+  band.bins = static_cast<std::size_t>(std::max(1.0, std::ceil(2.0 * band.half_width / D)));
+  return band;
+}
+
 }  // namespace
 
 std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, const scene::Scene& s,
@@ -362,6 +420,7 @@ std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, con
   if (st) r.push_back(std::make_unique<StructureLoadRecorder>(sim.structure_parts()));
   r.push_back(std::make_unique<WallsRecorder>(s.walls, /*total_is_force=*/!st));
   if (st) r.push_back(std::make_unique<PileHeightRecorder>(pile_probe(sim, s), comm));
+  if (st && s.structure.type == "pier") r.push_back(std::make_unique<PileMeanRecorder>(pile_band(sim, s), comm));
   if (sim.has_blocks()) r.push_back(std::make_unique<BlocksRecorder>(st));
   r.push_back(std::make_unique<EnergyRecorder>());
   r.push_back(std::make_unique<CountsRecorder>());

@@ -50,18 +50,28 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
   an.hybrid = hyb.report();
   an.block_bonds_broken = hyb.block_particle_bonds_broken();
   an.conversion = bridge::to_string(sim.blocks().def.mode);
-  const double h_iso = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
+  const double h_nominal = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
+  const double h_iso = sim.built().lattice_thickness > 0 ? sim.built().lattice_thickness : h_nominal;
   an.L_c = characteristic_length(s.material.youngs_modulus, h_iso, s.water.density, s.gravity.norm(),
                                  s.material.poisson_ratio);
   if (!std::isfinite(an.L_c)) {
     an.L_c_note = "L_c not defined: gravity is zero (L_c = (E h^3 / (12 (1 - nu^2) rho_w g))^(1/4) needs g > 0)";
     an.L_c = 0.0;
   }
+  an.has_pile_mean = f.has_pile_mean;
+  an.max_pile_mean = f.max_pile_mean;
   if (sim.has_structure() && s.structure.type == "pier" && !(s.gravity.norm() > 0)) {
     an.iso_note = "ISO 19906 estimate not computed: gravity is zero (the cone formulas need g > 0)";
   } else if (sim.has_structure() && s.structure.type == "pier") {
     try {
-      an.iso_in = iso_inputs(s, f.max_pile);
+      IsoMeasured m;
+      if (sim.built().lattice_thickness > 0) m.thickness = sim.built().lattice_thickness;
+      if (f.has_pile_mean) m.rubble_height = f.max_pile_mean;
+      m.ridge = sim.blocks().ridge;
+      // m.calibrated = ...;  the calibrated lattice's E, nu and flexural strength, once there is one
+      const IsoAssembly as = assemble_iso_inputs(s, m);
+      an.iso_in = as.in;
+      an.iso_records = as.records;
       an.iso = analysis::compute_iso(an.iso_in);
       an.has_iso = true;
       // Any figure that is not finite (degenerate inputs) leaves the estimate out, with the reason.
@@ -71,6 +81,21 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
           an.has_iso = false;
           an.iso_note = "ISO 19906 estimate not computed: " + k + " is not finite for these inputs";
         }
+      for (const auto& r : an.iso_records)
+        if (!std::isfinite(r.value) && an.has_iso) {
+          an.has_iso = false;
+          an.iso_note = "ISO 19906 estimate not computed: input " + r.key + " is not finite";
+        }
+      if (an.has_iso) {  // beside it: F_H with the old pile height, the highest particle
+        analysis::IsoInputs top = an.iso_in;
+        top.rubble_height = f.max_pile;
+        try {
+          const double fh = analysis::compute_iso(top).F_H;
+          an.iso_F_H_top_particle = std::isfinite(fh) ? fh : 0.0;
+        } catch (const InputError&) {
+          an.iso_F_H_top_particle = 0.0;
+        }
+      }
     } catch (const InputError& err) {
       an.iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
     }
@@ -116,6 +141,41 @@ void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
                                                 "count, wall time per part (s, rank 0), rigid step (s)"));
 }
 
+/// /analysis/iso: the results, every input (flat value attributes as before, and per input a
+/// group /analysis/iso/inputs/<key> with value, unit, source and note), the DEM figures.
+void write_iso(io::RunFileEditor& f, const RunReport& a) {
+  const std::string g = "/analysis/iso";
+  f.add_group(g);
+  const nlohmann::json result = analysis::iso_to_json(a.iso);
+  for (const auto& [k, v] : result.items()) f.set_attribute(g, k, v.get<double>());
+  f.add_group(g + "/inputs");
+  f.set_attribute(g + "/inputs", "description",
+                  std::string("every input of the ISO 19906 estimate: value (SI), unit, source (scene, measured, "
+                              "default, ridge_file or calibrated) and how it was obtained (docs/iso19906.md)"));
+  for (const auto& r : a.iso_records) {
+    f.set_attribute(g, r.key, r.value);
+    const std::string gi = g + "/inputs/" + r.key;
+    f.add_group(gi);
+    f.set_attribute(gi, "value", r.value);
+    f.set_attribute(gi, "unit", r.unit.empty() ? std::string("1") : r.unit);
+    f.set_attribute(gi, "source", std::string(to_string(r.source)));
+    if (!r.note.empty()) f.set_attribute(gi, "note", r.note);
+  }
+  f.set_attribute(g, "dem_peak_horizontal_force", a.dem_peak);
+  f.set_attribute(g, "dem_max_pile_height", a.max_pile);
+  if (a.has_pile_mean) f.set_attribute(g, "dem_max_pile_height_mean", a.max_pile_mean);
+  f.set_attribute(g, "dem_over_iso", a.iso.F_H > 0 ? a.dem_peak / a.iso.F_H : 0.0);
+  if (a.iso_F_H_top_particle > 0) {
+    f.set_attribute(g, "F_H_top_particle_pile", a.iso_F_H_top_particle);
+    f.set_attribute(g, "dem_over_iso_top_particle_pile", a.dem_peak / a.iso_F_H_top_particle);
+  }
+  f.set_attribute(g, "description",
+                  std::string("ISO 19906 (Croasdale & Cammaert + Dolgopolov keel) load for the run's ice; inputs "
+                              "and their sources in inputs/; rubble_height = peak of /series/pile_height_mean "
+                              "unless the scene gives one; F_H_top_particle_pile = F_H with the highest particle "
+                              "(dem_max_pile_height) as the pile height instead; forces in N"));
+}
+
 }  // namespace
 
 void write_analysis(const std::string& path, const RunReport& a) {
@@ -130,18 +190,7 @@ void write_analysis(const std::string& path, const RunReport& a) {
     f.set_attribute("/analysis/pieces", "characteristic_length", a.L_c);
   else
     f.set_attribute("/analysis/pieces", "characteristic_length_note", a.L_c_note);
-  if (a.has_iso) {
-    const std::string g = "/analysis/iso";
-    f.add_group(g);
-    const nlohmann::json result = analysis::iso_to_json(a.iso), inputs = analysis::iso_inputs_to_json(a.iso_in);
-    for (const auto& [k, v] : result.items()) f.set_attribute(g, k, v.get<double>());
-    for (const auto& [k, v] : inputs.items()) f.set_attribute(g, k, v.get<double>());
-    f.set_attribute(g, "dem_peak_horizontal_force", a.dem_peak);
-    f.set_attribute(g, "dem_max_pile_height", a.max_pile);
-    f.set_attribute(g, "dem_over_iso", a.iso.F_H > 0 ? a.dem_peak / a.iso.F_H : 0.0);
-    f.set_attribute(g, "description", std::string("ISO 19906 (Croasdale & Cammaert) cone load for the scene's ice, "
-                                                  "rubble_height = max simulated pile height; forces in N"));
-  }
+  if (a.has_iso) write_iso(f, a);
   if (a.has_hybrid) write_hybrid(f, a);
   f.flush();
 }

@@ -7,6 +7,7 @@
 #include "analysis/pieces.h"
 #include "bridge/hybrid.h"
 #include "scene/scene.h"
+#include "sim/iso_inputs.h"
 #include "sim/recorder.h"
 #include "sim/simulation.h"
 
@@ -24,11 +25,17 @@ struct RunReport {
   double L_c = 0.0;            ///< m, characteristic length of the (consolidated) ice
   std::string L_c_note;        ///< why L_c is not defined (zero gravity); then L_c is not written
   bool has_iso = false;
-  analysis::IsoInputs iso_in;  ///< rubble height = the max simulated pile height
+  analysis::IsoInputs iso_in;  ///< rubble height = the peak ISO-consistent pile height (sim/iso_inputs.h)
+  std::vector<IsoInputRecord> iso_records;  ///< every input with its unit and source
   analysis::IsoResult iso;
+  /// F_H with the old pile height (the single highest particle, /series/pile_height) in place
+  /// of the ISO-consistent one, for comparison; 0 when not computed.
+  double iso_F_H_top_particle = 0.0;
   std::string iso_note;        ///< why there is no ISO estimate (a pier scene whose inputs ISO refuses)
   double dem_peak = 0.0;       ///< N, peak horizontal force on the structure (output-row means)
-  double max_pile = 0.0;       ///< m
+  double max_pile = 0.0;       ///< m, peak of /series/pile_height (highest particle)
+  bool has_pile_mean = false;
+  double max_pile_mean = 0.0;  ///< m, peak of /series/pile_height_mean
   bool has_hybrid = false;
   bridge::HybridReport hybrid;
   std::uint64_t block_bonds_broken = 0;  ///< block-particle freeze bonds broken

@@ -188,6 +188,9 @@ TEST(Iso19906, ReferenceValuesFromIndependentScript) {
   near(r.H_T, 57196.791907886945);
   near(r.F_H, 1854118.2581503857);
   near(r.F_K, 887658.0442642445);
+  // The keel meeting a structure wider than the waterline (keel_width = 17.5 m, w = 14 m).
+  const IsoResult rk = compute_iso(with(paper_case(), &IsoInputs::keel_width, 17.5));
+  near(rk.F_K, 1099485.5321000302);
 }
 
 // ---- limits and properties ----
@@ -253,6 +256,19 @@ TEST(Iso19906, KeelLoadWithoutCohesionScalesWithDepth) {
   const double f4 = compute_iso(with(in, &IsoInputs::keel_depth, 4.0)).F_K;
   const double f8 = compute_iso(with(in, &IsoInputs::keel_depth, 8.0)).F_K;
   EXPECT_NEAR(f8 / f4, 4.0 * (1.0 + 8.0 / 84.0) / (1.0 + 4.0 / 84.0), 3e-15);  // measured 0 (was 1e-12)
+}
+
+TEST(Iso19906, KeelWidthReplacesTheWaterlineDiameterInTheKeelTermOnly) {
+  // keel_width 0 (the default) is the waterline diameter; another width changes F_K as
+  // w_k (1 + h_k/(6 w_k)) and leaves the level-ice terms alone.
+  const IsoResult a = compute_iso(paper_case());
+  EXPECT_EQ(compute_iso(with(paper_case(), &IsoInputs::keel_width, 14.0)).F_K, a.F_K);
+  const IsoResult b = compute_iso(with(paper_case(), &IsoInputs::keel_width, 10.0));
+  EXPECT_EQ(b.F_H, a.F_H);
+  const double ratio = 10.0 * (1.0 + 4.0 / 60.0) / (14.0 * (1.0 + 4.0 / 84.0));
+  EXPECT_NEAR(b.F_K / a.F_K, ratio, 3e-15);  // measured 1.1e-16
+  EXPECT_EQ(expect_input_error([] { compute_iso(with(paper_case(), &IsoInputs::keel_width, -1.0)); }).path(),
+            "/keel_width");
 }
 
 TEST(Iso19906, NoKeelMeansNoKeelLoad) {
@@ -461,4 +477,53 @@ TEST(PileHeight, HighestUpstreamIceOverTheConeAboveWater) {
   EXPECT_DOUBLE_EQ(hs::analysis::pile_height(p, m.data(), r.data(), m.size()), 2.25);
   // Nothing above water: zero.
   EXPECT_DOUBLE_EQ(hs::analysis::pile_height(p, x.data() + 4, r.data(), 1), 0.0);
+}
+
+TEST(PileHeight, BandMeanIsTheCrestAveragedOverTheWaterlineWidth) {
+  // A synthetic pile on a pier at x = 10 moving towards -x (ice upstream at -x), waterline
+  // width 8 m in 4 strips of 2 m across y: crests 3, 1, 0 (nothing above water), 2 m, so the
+  // mean is (3 + 1 + 0 + 2) / 4 = 1.5 m; the single highest particle says 3 m.
+  using hs::Vec3;
+  hs::analysis::PileBand b;
+  b.axis_point = Vec3(10, 0, 0);
+  b.upstream = Vec3(-1, 0, 0);
+  b.half_width = 4.0;
+  b.reach = 6.0;
+  b.water_level = 0.5;
+  b.bins = 4;
+  const double r = 0.25;
+  // Strips (v = y seen from upstream -x: v = -y): v in [-4,-2) = y in (2,4], [-2,0) = y in (0,2],
+  // [0,2) = y in (-2,0], [2,4] = y in [-4,-2].
+  const std::vector<Vec3> x = {
+      Vec3(8, 3, 3.25),   // y = 3 strip: top 3.5 -> 3.0 above the water
+      Vec3(6, 3, 1.25),   // same strip, lower
+      Vec3(9, 1, 1.25),   // y = 1 strip: 1.0
+      Vec3(7, -1, -2.0),  // y = -1 strip: under water -> 0
+      Vec3(5, -3, 2.25),  // y = -3 strip: 2.0
+      Vec3(12, 0, 9.0),   // downstream (u < 0): ignored
+      Vec3(3, 1, 9.0),    // beyond reach (u = 7 > 6): ignored
+      Vec3(8, 4.5, 9.0),  // outside the width (|v| = 4.5 > 4): ignored
+  };
+  const std::vector<double> rr(x.size(), r);
+  const auto crest = hs::analysis::pile_crests(b, x.data(), rr.data(), x.size());
+  ASSERT_EQ(crest.size(), 4u);
+  // Sorted by v from -w/2: y = 3 (v = -3), y = 1, y = -1, y = -3.
+  EXPECT_EQ(crest, (std::vector<double>{3.0, 1.0, 0.0, 2.0}));
+  EXPECT_DOUBLE_EQ(hs::analysis::mean_crest(crest), 1.5);
+  // Mirror symmetry: the same pile mirrored across the axis, the structure moving the other
+  // way, gives the same mean (the strips come out in the same order).
+  std::vector<Vec3> m = x;
+  for (auto& v : m) v = Vec3(20.0 - v.x(), -v.y(), v.z());
+  b.upstream = Vec3(1, 0, 0);
+  EXPECT_EQ(hs::analysis::pile_crests(b, m.data(), rr.data(), m.size()), crest);
+  // A uniform pile of height H over the whole width reads H, however many strips.
+  b.upstream = Vec3(-1, 0, 0);
+  std::vector<Vec3> flat;
+  for (int k = 0; k < 80; ++k) flat.push_back(Vec3(8.0, -3.95 + 0.1 * k, 1.75));  // top 2.0, 1.5 above water
+  const std::vector<double> rf(flat.size(), r);
+  for (std::size_t bins : {1u, 3u, 8u, 40u}) {
+    b.bins = bins;
+    EXPECT_DOUBLE_EQ(hs::analysis::mean_crest(hs::analysis::pile_crests(b, flat.data(), rf.data(), flat.size())), 1.5)
+        << bins;
+  }
 }

@@ -227,7 +227,7 @@ TEST(CliStructure, TinyPierRunWritesLoadsPileIsoAndPieces) {
   EXPECT_GE(n, 30u);
   for (const char* ds : {"/series/force", "/series/moment", "/series/parts/cone/force", "/series/parts/cone/moment",
                          "/series/parts/shaft/force", "/series/parts/neck/force", "/series/walls/far_end/force",
-                         "/series/pile_height", "/series/structure_position"})
+                         "/series/pile_height", "/series/pile_height_mean", "/series/structure_position"})
     EXPECT_EQ(rows(h5, ds), n) << ds;
 
   // The structure's force is the sum over its parts; it pushes +x, so the ice pushes back (-x).
@@ -257,10 +257,25 @@ TEST(CliStructure, TinyPierRunWritesLoadsPileIsoAndPieces) {
   }
   EXPECT_GT(pmax, 0.0) << "the freeboard alone is above the waterline";
 
-  // ISO next to the DEM: same inputs as the scene, rubble height = the max pile height.
+  // The ISO-consistent pile height (crest averaged over the waterline width; its band reaches
+  // L_c ahead of the cone, further than /series/pile_height's probe, so neither bounds the other).
+  const auto mean = read_doubles(h5, "/series/pile_height_mean");
+  ASSERT_EQ(mean.size(), pile.size());
+  double mmax = 0;
+  for (double m : mean) {
+    EXPECT_GE(m, 0.0);
+    mmax = std::max(mmax, m);
+  }
+  EXPECT_GT(mmax, 0.0);
+
+  // ISO next to the DEM: same inputs as the scene, rubble height = the peak mean pile height;
+  // the highest particle's peak is kept beside it.
   const double FH = read_attr(h5, "/analysis/iso", "F_H");
   EXPECT_GT(FH, 0.0);
-  EXPECT_NEAR(read_attr(h5, "/analysis/iso", "rubble_height"), pmax, 1e-12);
+  EXPECT_EQ(read_attr(h5, "/analysis/iso", "rubble_height"), mmax);
+  EXPECT_EQ(read_attr(h5, "/analysis/iso", "dem_max_pile_height_mean"), mmax);
+  EXPECT_EQ(read_attr(h5, "/analysis/iso", "dem_max_pile_height"), pmax);
+  EXPECT_GE(read_attr(h5, "/analysis/iso", "F_H_top_particle_pile"), FH);
   EXPECT_EQ(read_attr(h5, "/analysis/iso", "waterline_diameter"), 2.0);
   EXPECT_EQ(read_attr(h5, "/analysis/iso", "youngs_modulus"), 1e7);
   EXPECT_GT(read_attr(h5, "/analysis/iso", "dem_peak_horizontal_force"), 0.0);
@@ -306,6 +321,12 @@ TEST(CliStructure, IsoCommandOnPlainInputsAndOnAScene) {
   EXPECT_EQ(o2.at("inputs").at("flexural_strength").get<double>(), 0.6e6);
   EXPECT_EQ(o2.at("inputs").at("thickness").get<double>(), 0.6);
   EXPECT_GT(o2.at("F_H").get<double>(), 0.0);
+  // On a scene it says where each input came from (no run: the nominal thickness).
+  EXPECT_EQ(o2.at("sources").at("rubble_height"), "scene");
+  EXPECT_EQ(o2.at("sources").at("thickness"), "scene");
+  EXPECT_EQ(o2.at("sources").at("keel_depth"), "default");
+  EXPECT_EQ(o2.at("sources").size(), hs::analysis::iso_input_keys().size());
+  EXPECT_FALSE(o.contains("sources"));  // plain inputs: every key is the file's or the default
 
   write("iso_bad.json", R"({"thicknes": 0.9})");
   const Result r3 = hybridsim("iso iso_bad.json");

@@ -43,7 +43,7 @@ def print_summary(a, b, rows):
     ha, hb = horizontal(a["series/force"][:rows]), horizontal(b["series/force"][:rows])
     for name, x, y in [("mean", ha.mean(), hb.mean()), ("peak", ha.max(), hb.max())]:
         print(f"horizontal force {name}: {x:.9g} N vs {y:.9g} N, relative difference {abs(x - y) / max(abs(x), 1e-300):.3e}")
-    for k in ["series/bonds_broken", "series/pile_height"]:
+    for k in ["series/bonds_broken", "series/pile_height", "series/pile_height_mean"]:
         if k in a:
             print(f"{k}: last {a[k][:rows][-1]} vs {b[k][:rows][-1]}, largest {a[k][:rows].max()} vs {b[k][:rows].max()}")
 
@@ -134,7 +134,8 @@ def main():
                 w = np.abs(pa - pb).max() / scale
                 print(f"part {p}: {w:.3e}")
                 ok &= w <= args.rtol
-        for k in ["series/pile_height", "series/bonds", "series/particles", "series/bonds_broken"]:
+        for k in ["series/pile_height", "series/pile_height_mean", "series/bonds", "series/particles",
+                  "series/bonds_broken"]:
             if k in a:
                 xa, xb = a[k][:rows].astype(float), b[k][:rows].astype(float)
                 d = np.abs(xa - xb).max()

@@ -1,0 +1,254 @@
+// The ISO 19906 inputs of a run with their sources; rules in iso_inputs.h.
+#include "sim/iso_inputs.h"
+
+#include "common/error.h"
+#include "common/hcp_geometry.h"
+#include "common/ice_formulas.h"
+#include "json/reader.h"
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+#include <set>
+#include <stdexcept>
+
+namespace hs::sim {
+
+const char* to_string(IsoSource s) {
+  switch (s) {
+    case IsoSource::Scene: return "scene";
+    case IsoSource::Measured: return "measured";
+    case IsoSource::Default: return "default";
+    case IsoSource::RidgeFile: return "ridge_file";
+    case IsoSource::Calibrated: return "calibrated";
+  }
+  return "?";
+}
+
+const IsoInputRecord& IsoAssembly::record(const std::string& key) const {
+  for (const auto& r : records)
+    if (r.key == key) return r;
+  throw std::out_of_range("no ISO input record '" + key + "'");
+}
+
+namespace {
+
+/// Whether the effective scene JSON has a value at `pointer` ("/analysis/keel_depth").
+bool given(const scene::Scene& s, const char* pointer) {
+  return s.json.is_object() && s.json.contains(nlohmann::json::json_pointer(pointer));
+}
+
+IsoSource scene_or_default(const scene::Scene& s, const char* pointer) {
+  return given(s, pointer) ? IsoSource::Scene : IsoSource::Default;
+}
+
+/// Pier radius on the piece of the profile that contains `mid` (neck, cone or shaft), at z:
+/// the pieces' own formulas, so that the ends of a piece take its values and not the
+/// neighbour's at a step (cone base -> shaft).
+double radius_on_piece(const mesh::PierParams& p, double z, double mid) {
+  const double neck_top = p.cone_top_z + p.neck_height;
+  if (mid > neck_top || mid < p.shaft_bottom_z) return 0.0;
+  if (mid > p.cone_top_z) return mesh::pier_cone_radius(p, p.cone_top_z);
+  if (mid > p.cone_bottom_z) return mesh::pier_cone_radius(p, z);
+  return 0.5 * p.shaft_diameter;
+}
+
+}  // namespace
+
+double lattice_mean_thickness(const bonded::ParticleStore& p, const scene::Scene& s) {
+  const std::size_t n = p.owned();
+  if (n == 0 || !s.has_ice) return 0.0;
+  const double D = s.material.particle_diameter;
+  const double c = hcp_layer_spacing(D);
+  const bool band = s.ice.has_consolidated_layer;
+  const auto& cl = s.ice.consolidated_layer;
+  const auto inside = [&](std::size_t i) { return !band || std::abs(p.x[i].x() - cl.center_x) <= 0.5 * cl.width; };
+  double z_min = 0.0;
+  std::size_t count = 0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (inside(i)) z_min = count++ ? std::min(z_min, p.x[i].z()) : p.x[i].z();
+  if (count == 0) return 0.0;
+  std::set<long long> layers;  // layer index above the lowest: centre heights are c apart
+  double volume = 0.0;
+  for (std::size_t i = 0; i < n; ++i)
+    if (inside(i)) {
+      layers.insert(std::llround((p.x[i].z() - z_min) / c));
+      volume += p.buoyant_volume[i];
+    }
+  return static_cast<double>(layers.size()) * (volume / static_cast<double>(count)) / (D * D * std::sqrt(3.0) / 2.0);
+}
+
+double keel_width_on_pier(const mesh::PierParams& p, double z_top, double h_k, double mu_phi, double gamma_e,
+                          double cohesion) {
+  if (!(h_k > 0.0)) return 0.0;
+  const double z_bot = z_top - h_k;
+  std::vector<double> cuts{z_bot, z_top};
+  for (const double b : {p.shaft_bottom_z, p.cone_bottom_z, p.cone_top_z, p.cone_top_z + p.neck_height})
+    if (b > z_bot && b < z_top) cuts.push_back(b);
+  std::sort(cuts.begin(), cuts.end());
+  const auto pressure = [&](double z) { return mu_phi * mu_phi * gamma_e * (z_top - z) + 2.0 * cohesion * mu_phi; };
+  // Simpson's rule on each piece: exact for the quadratic (linear width x linear pressure).
+  double wp = 0.0, w = 0.0;
+  for (std::size_t k = 0; k + 1 < cuts.size(); ++k) {
+    const double a = cuts[k], b = cuts[k + 1], m = 0.5 * (a + b);
+    if (!(b > a)) continue;
+    const double ra = radius_on_piece(p, a, m), rm = radius_on_piece(p, m, m), rb = radius_on_piece(p, b, m);
+    wp += (b - a) / 6.0 * (2 * ra * pressure(a) + 4.0 * 2 * rm * pressure(m) + 2 * rb * pressure(b));
+    w += (b - a) / 6.0 * (2 * ra + 4.0 * 2 * rm + 2 * rb);
+  }
+  const double load = mu_phi * mu_phi * gamma_e * h_k * h_k / 2.0 + 2.0 * cohesion * mu_phi * h_k;
+  return load > 0.0 ? wp / load : w / h_k;
+}
+
+IsoAssembly assemble_iso_inputs(const scene::Scene& s, const IsoMeasured& m) {
+  if (!s.has_structure)
+    throw InputError("/structure", "the ISO 19906 estimate needs a cone: add \"structure\": {\"type\": \"pier\"}");
+  if (s.structure.type != "pier")
+    throw InputError("/structure/type", "the ISO 19906 estimate needs the parametric pier (waterline diameter and "
+                                        "cone angle); a mesh structure does not give them");
+  using analysis::IsoInputs;
+  IsoAssembly out;
+  IsoInputs& in = out.in;
+  struct Pending {
+    IsoSource source;
+    std::string note;
+  };
+  std::vector<std::pair<std::string, Pending>> src;
+  const auto set = [&](const char* key, double IsoInputs::*field, double value, IsoSource source,
+                       std::string note = "") {
+    in.*field = value;
+    src.push_back({key, {source, std::move(note)}});
+  };
+  const auto& pier = s.structure.pier;
+  const auto& mat = s.material;
+  const auto& an = s.analysis;
+
+  // Thickness: the ice ISO breaks (the consolidated layer if there is one).
+  const bool layer = s.has_ice && s.ice.has_consolidated_layer;
+  const double nominal = layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
+  const char* nominal_path = layer ? "/ice/consolidated_layer/thickness" : "/ice/thickness";
+  if (m.thickness)
+    set("thickness", &IsoInputs::thickness, *m.thickness, IsoSource::Measured,
+        std::string("mean thickness of the built lattice") + (layer ? " in the consolidated layer" : "") +
+            " (ice volume per unit area); nominal " + nominal_path + " = " + json_fmt(nominal) + " m");
+  else
+    set("thickness", &IsoInputs::thickness, nominal, IsoSource::Scene, std::string("nominal ") + nominal_path);
+
+  set("waterline_diameter", &IsoInputs::waterline_diameter, pier.waterline_diameter,
+      scene_or_default(s, "/structure/pier/waterline_diameter"), "/structure/pier/waterline_diameter");
+
+  // Strength and stiffness: the calibrated lattice's when there is one.
+  if (m.calibrated)
+    set("flexural_strength", &IsoInputs::flexural_strength, m.calibrated->flexural_strength, IsoSource::Calibrated,
+        "flexural strength of the calibrated lattice");
+  else if (given(s, "/material/flexural_strength") && s.json["material"]["flexural_strength"].is_number())
+    set("flexural_strength", &IsoInputs::flexural_strength, s.json["material"]["flexural_strength"].get<double>(),
+        IsoSource::Scene, "/material/flexural_strength");
+  else
+    set("flexural_strength", &IsoInputs::flexural_strength, an.flexural_strength,
+        scene_or_default(s, "/analysis/flexural_strength"), "/analysis/flexural_strength");
+  if (m.calibrated) {
+    set("youngs_modulus", &IsoInputs::youngs_modulus, m.calibrated->youngs_modulus, IsoSource::Calibrated,
+        "Young's modulus of the calibrated lattice");
+    set("poisson_ratio", &IsoInputs::poisson_ratio, m.calibrated->poisson_ratio, IsoSource::Calibrated,
+        "Poisson's ratio of the calibrated lattice");
+  } else {
+    set("youngs_modulus", &IsoInputs::youngs_modulus, mat.youngs_modulus,
+        scene_or_default(s, "/material/youngs_modulus"), "/material/youngs_modulus");
+    set("poisson_ratio", &IsoInputs::poisson_ratio, mat.poisson_ratio, scene_or_default(s, "/material/poisson_ratio"),
+        "/material/poisson_ratio");
+  }
+
+  set("cone_angle_deg", &IsoInputs::cone_angle_deg, pier.cone_angle_deg,
+      scene_or_default(s, "/structure/pier/cone_angle_deg"), "/structure/pier/cone_angle_deg");
+  set("friction_ice_structure", &IsoInputs::friction_ice_structure, s.structure.friction,
+      scene_or_default(s, "/structure/friction"), "/structure/friction");
+  if (given(s, "/analysis/friction_ice_ice"))
+    set("friction_ice_ice", &IsoInputs::friction_ice_ice, an.friction_ice_ice, IsoSource::Scene,
+        "/analysis/friction_ice_ice");
+  else
+    set("friction_ice_ice", &IsoInputs::friction_ice_ice, an.friction_ice_ice,
+        scene_or_default(s, "/material/friction"), "/material/friction");
+  set("ice_density", &IsoInputs::ice_density, mat.density, scene_or_default(s, "/material/density"),
+      "/material/density");
+  set("water_density", &IsoInputs::water_density, s.water.density, scene_or_default(s, "/water/density"),
+      "/water/density");
+  set("gravity", &IsoInputs::gravity, s.gravity.norm(), scene_or_default(s, "/gravity"), "|/gravity|");
+
+  // The rubble pile.
+  if (given(s, "/analysis/rubble_height"))
+    set("rubble_height", &IsoInputs::rubble_height, an.rubble_height, IsoSource::Scene, "/analysis/rubble_height");
+  else if (m.rubble_height)
+    set("rubble_height", &IsoInputs::rubble_height, *m.rubble_height, IsoSource::Measured,
+        "peak of /series/pile_height_mean (crest of the pile averaged over the waterline width)");
+  else
+    set("rubble_height", &IsoInputs::rubble_height, an.rubble_height, IsoSource::Default, "/analysis/rubble_height");
+  if (given(s, "/analysis/rubble_porosity"))
+    set("rubble_porosity", &IsoInputs::rubble_porosity, an.rubble_porosity, IsoSource::Scene,
+        "/analysis/rubble_porosity");
+  else if (m.ridge)
+    set("rubble_porosity", &IsoInputs::rubble_porosity, m.ridge->porosity, IsoSource::RidgeFile,
+        "keel porosity of " + m.ridge->path + " (used for the pile and the keel)");
+  else
+    set("rubble_porosity", &IsoInputs::rubble_porosity, an.rubble_porosity, IsoSource::Default,
+        "/analysis/rubble_porosity");
+  set("rubble_cohesion", &IsoInputs::rubble_cohesion, an.rubble_cohesion,
+      scene_or_default(s, "/analysis/rubble_cohesion"), "/analysis/rubble_cohesion");
+  if (an.rubble_slope_deg > 0)
+    set("rubble_slope_deg", &IsoInputs::rubble_slope_deg, an.rubble_slope_deg, IsoSource::Scene,
+        "/analysis/rubble_slope_deg");
+  else
+    set("rubble_slope_deg", &IsoInputs::rubble_slope_deg, 0.8 * in.cone_angle_deg, IsoSource::Default,
+        "0.8 x cone_angle_deg");
+  set("rubble_friction_angle_deg", &IsoInputs::rubble_friction_angle_deg, an.rubble_friction_angle_deg,
+      scene_or_default(s, "/analysis/rubble_friction_angle_deg"), "/analysis/rubble_friction_angle_deg");
+
+  // The keel: depth below the consolidated layer, and where on the pier it acts.
+  const double level = s.water.enabled ? s.water.level : 0.0;
+  double keel_top_depth = in.thickness * in.ice_density / in.water_density;  // the ISO sheet's underside
+  if (given(s, "/analysis/keel_depth")) {
+    set("keel_depth", &IsoInputs::keel_depth, an.keel_depth, IsoSource::Scene,
+        "/analysis/keel_depth (ISO: below the consolidated layer)");
+  } else if (m.ridge) {
+    keel_top_depth = m.ridge->layer_bottom_depth;
+    set("keel_depth", &IsoInputs::keel_depth, std::max(0.0, m.ridge->keel_depth - m.ridge->layer_bottom_depth),
+        IsoSource::RidgeFile,
+        "keel depth " + json_fmt(m.ridge->keel_depth) + " m below the waterline minus the consolidated layer's "
+            "underside at " + json_fmt(m.ridge->layer_bottom_depth) + " m, " + m.ridge->path);
+  } else {
+    set("keel_depth", &IsoInputs::keel_depth, 0.0, IsoSource::Default, "no keel");
+  }
+  if (in.keel_depth > 0.0) {
+    const double phi = in.rubble_friction_angle_deg * std::numbers::pi / 180.0;
+    const double mu_phi = std::tan(std::numbers::pi / 4.0 + phi / 2.0);
+    const double gamma_e = (1.0 - in.rubble_porosity) * (in.water_density - in.ice_density) * in.gravity;
+    const double z_top = level - keel_top_depth - s.structure.position.z();  // pier frame
+    set("keel_width", &IsoInputs::keel_width,
+        keel_width_on_pier(pier, z_top, in.keel_depth, mu_phi, gamma_e, in.rubble_cohesion),
+        scene_or_default(s, "/structure/pier"),
+        "pier diameter weighted by the plug-failure pressure over the keel, z = " + json_fmt(z_top) + " to " +
+            json_fmt(z_top - in.keel_depth) + " m in the pier's frame (cone base " +
+            json_fmt(2.0 * mesh::pier_cone_radius(pier, pier.cone_bottom_z)) + " m at z = " +
+            json_fmt(pier.cone_bottom_z) + " m, shaft " + json_fmt(pier.shaft_diameter) + " m)");
+  } else {
+    set("keel_width", &IsoInputs::keel_width, in.waterline_diameter, scene_or_default(s, "/structure/pier"),
+        "no keel: the waterline diameter");
+  }
+
+  // One record per input, in the inputs' own order, with their units.
+  const nlohmann::json values = analysis::iso_inputs_to_json(in);
+  for (const auto& key : analysis::iso_input_keys()) {
+    const auto it = std::find_if(src.begin(), src.end(), [&](const auto& p) { return p.first == key; });
+    if (it == src.end()) throw std::logic_error("assemble_iso_inputs: no source for ISO input " + key);
+    IsoInputRecord r;
+    r.key = key;
+    r.value = values[key].get<double>();
+    r.unit = analysis::iso_input_unit(key);
+    r.source = it->second.source;
+    r.note = it->second.note;
+    out.records.push_back(std::move(r));
+  }
+  return out;
+}
+
+}  // namespace hs::sim
