@@ -1,3 +1,8 @@
+// In a build without AVX, GCC notes that 32-byte vectors passed by value would change the ABI:
+// all of them stay inside this file (anonymous namespace), so there is no ABI to change. First
+// line, so that it also covers the header templates this file instantiates.
+#pragma GCC diagnostic ignored "-Wpsabi"
+
 #include "bond_kernel.h"
 
 #include "engine.h"
@@ -173,12 +178,11 @@ inline Out batch(const BondBatch& bb, std::size_t k0, const VParams& p, const Bo
   // --- rotation: W = q_j c q_i^*, theta = log(W) by the series of rotation_vector ---
   const VQ qic{qi.w, -qi.x, -qi.y, -qi.z};
   const VQ w = mul(mul(qj, c), qic);
-  const vm neg = w.w < 0.0;
-  const vd sgn = neg ? splat(-1.0) : splat(1.0);
-  const V3 wv{sgn * w.x, sgn * w.y, sgn * w.z};
-  const vd cw = sgn * w.w;
+  // rotation_vector first turns W to w >= 0 (the shortest arc); the series below gives the same
+  // bits when W.vec and W.w both change sign ((2/(-c)) (-v) = (2/c) v exactly), so no turn here.
+  const V3 wv{w.x, w.y, w.z};
   const vd s2 = dot(wv, wv);
-  const vd ic = 1.0 / cw;
+  const vd ic = 1.0 / w.w;
   const vd t2 = s2 * ic * ic;
   constexpr double k3 = 1.0 / 3.0, k5 = 1.0 / 5.0, k7 = 1.0 / 7.0;
   const V3 th = ((2.0 * ic) * (1.0 - t2 * (k3 - t2 * (k5 - t2 * k7)))) * wv;
