@@ -122,6 +122,12 @@ struct BondResult {
   double energy; ///< elastic energy, J
 };
 
+/// Below these the series of rotation_vector (t^2 = tan^2(phi/2)) and log_jacobian_c2 (phi^2) hold
+/// to round-off; the bond kernel (bond_kernel.h) evaluates only the series and hands larger
+/// rotations to parallel_bond.
+inline constexpr double kRotationSeriesT2 = 1e-4;
+inline constexpr double kLogJacobianSeriesPhi2 = 1e-3;
+
 /// Rotation vector of a unit quaternion (log map), shortest arc.
 inline Vec3 rotation_vector(const Quat& w_in) {
   Quat w = w_in;
@@ -134,15 +140,24 @@ inline Vec3 rotation_vector(const Quat& w_in) {
   const double ic = 1.0 / c;
   const double t2 = s2 * ic * ic;
   constexpr double k3 = 1.0 / 3.0, k5 = 1.0 / 5.0, k7 = 1.0 / 7.0;
-  if (t2 < 1e-4) return (2.0 * ic) * (1.0 - t2 * (k3 - t2 * (k5 - t2 * k7))) * v;
+  if (t2 < kRotationSeriesT2) return (2.0 * ic) * (1.0 - t2 * (k3 - t2 * (k5 - t2 * k7))) * v;
   const double s = std::sqrt(s2);
   return (2.0 * std::atan2(s, c) / s) * v;
 }
 
-/// c2(phi) of the SO(3) log-map Jacobian from phi^2; series below 1e-3 rad.
+/// c2 of the SO(3) log-map Jacobian by its series in phi^2 (any arithmetic type T):
+/// c2 = 1/phi^2 - cot(phi/2)/(2 phi) = 1/12 + phi^2/720 + phi^4/30240 + phi^6/1209600 + O(phi^8),
+/// next term phi^8/47900160: below phi^2 = 1e-3 its error is < 3e-19 relative.
+template <class T>
+inline T log_jacobian_c2_series(T phi2) {
+  constexpr double k12 = 1.0 / 12.0, k720 = 1.0 / 720.0, k30240 = 1.0 / 30240.0, k1209600 = 1.0 / 1209600.0;
+  return k12 + phi2 * (k720 + phi2 * (k30240 + phi2 * k1209600));
+}
+
+/// c2(phi) of the SO(3) log-map Jacobian from phi^2; series below phi = 0.0316 rad, where the
+/// closed form loses digits to cancellation (1/phi^2 against a term as large).
 inline double log_jacobian_c2(double phi2) {
-  constexpr double k12 = 1.0 / 12.0, k720 = 1.0 / 720.0;
-  if (phi2 < 1e-6) return k12 + phi2 * k720;
+  if (phi2 < kLogJacobianSeriesPhi2) return log_jacobian_c2_series(phi2);
   const double phi = std::sqrt(phi2);
   const double h = 0.5 * phi;
   return 1.0 / (phi * phi) - std::cos(h) / (2.0 * phi * std::sin(h));

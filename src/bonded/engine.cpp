@@ -309,6 +309,7 @@ void Engine::build_neighbors() {
   const std::size_t n = ps_.size();
   ++stats_.neighbor_rebuilds;
   need_rebuild_ = false;
+  bond_batch_.invalidate();  // bonds may have been reordered, added or moved to other ranks
   if (n == 0) {
     pairs_.clear();
     return;
@@ -611,27 +612,15 @@ void Engine::pair_forces(const Law& law) {
 
 void Engine::bond_forces() {
   if (bonds_.empty()) return;
-  Vec3* f = ps_.f.data();
-  Vec3* t = ps_.torque.data();
-  std::size_t n_broken = 0;
-  for (auto& b : bonds_) {
-    const std::uint32_t i = b.i, j = b.j;
-    const ParallelBondParams& p = def_.bond[static_cast<int>(b.kind)];
-    const BondKinematics k{ps_.x[i], ps_.x[j], ps_.q[i], ps_.q[j], ps_.v[i], ps_.v[j], ps_.omega[i], ps_.omega[j]};
-    const BondResult res = parallel_bond(p, b.ref, k);
-    const bool tension = res.sigma > p.sigma_c;
-    const bool shear = res.tau > p.tau_c;
-    if (tension || shear) {
-      // Broken: its force is removed from this step on. Mark via an impossible kind.
-      b.kind = static_cast<BondKind>(0xff);
-      ++n_broken;
-      ++broken_now_[tension ? 0 : 1];
-      continue;
-    }
-    f[j] += res.fj;
-    f[i] -= res.fj;
-    t[i] += res.ti;
-    t[j] += res.tj;
+  if (!bond_batch_.valid_for(bonds_.size())) bond_batch_.pack(bonds_);
+  broken_bonds_.clear();
+  bond_kernel(bond_batch_, def_.bond, 2, {ps_.x.data(), ps_.q.data(), ps_.v.data(), ps_.omega.data(), ps_.f.data(), ps_.torque.data()},
+              broken_bonds_);
+  const std::size_t n_broken = broken_bonds_.size();
+  for (const BrokenBond& bb : broken_bonds_) {
+    // Broken: its force is removed from this step on. Mark via an impossible kind.
+    bonds_[bb.index].kind = static_cast<BondKind>(0xff);
+    ++broken_now_[bb.tension ? 0 : 1];
   }
   if (n_broken == 0) return;
   std::size_t w = 0;
@@ -646,6 +635,7 @@ void Engine::bond_forces() {
     bonds_[w++] = b;
   }
   bonds_.resize(w);
+  bond_batch_.invalidate();
 }
 
 void Engine::rebuild() {

@@ -14,6 +14,7 @@
 // so the two particles interact by contact from the next force evaluation on.
 #pragma once
 
+#include "bond_kernel.h"
 #include "bond_parallel.h"
 #include "mesh/sphere_mesh_contact.h"
 #include "contact_law.h"
@@ -384,6 +385,8 @@ class Engine {
   EngineDef def_;
   ParticleStore ps_;
   std::vector<Bond> bonds_;
+  BondBatch bond_batch_;                 ///< SoA copy of bonds_ for the kernel (bond_kernel.h)
+  std::vector<BrokenBond> broken_bonds_; ///< scratch of bond_forces
   std::vector<ContactPair> pairs_;
   std::vector<PlaneWall> walls_;
   std::vector<Vec3> wall_force_;

@@ -246,8 +246,11 @@ TEST(Validation, FloatingStripEndLoadMatchesHetenyi) {
   }
   x_load /= loaded.size();
   const double nrows = static_cast<double>(loaded.size()) / nl;  // mean over A and B layers
-  std::size_t n_top = 0;  // waterline layer
-  for (const auto& x : centres) n_top += x.z() > pose.position.z() + 0.5 * h - 0.5 * c;
+  // Waterline layer: centres at z_top - c/2; counted against the plane halfway to the next layer
+  // (z_top - c), not against their own height, where rounding decided (a build without FMA
+  // counted none of them, and the strip's foundation stiffness came out 0).
+  std::size_t n_top = 0;
+  for (const auto& x : centres) n_top += x.z() > pose.position.z() + 0.5 * h - c;
 
   // ---- lattice flexural rigidity and foundation, from the actual bonds (central part) ----
   // Pure bending eps_xx = -kappa (z - z0) with particles rotating with the section: a bond
@@ -313,8 +316,8 @@ TEST(Validation, FloatingStripEndLoadMatchesHetenyi) {
   const double a = x_load - (xmin - 0.25 * D);  // load inside the foundation's end
   const double w_fem_lat = beam_on_foundation(EI_lat, kf, L_beam, a, P);
   const double w_fem_cont = beam_on_foundation(EI_cont, kf, L_beam, a, P);
-  std::printf("[strip] %zu particles, %d layers, h = %.3f m, %.1f rows (b = %.3f m), length %.2f m, %zu loaded\n",
-              centres.size(), nl, h, nrows, b, L_beam, loaded.size());
+  std::printf("[strip] %zu particles, %d layers, h = %.3f m, %.1f rows (b = %.3f m), length %.2f m, %zu loaded, "
+              "%zu at the waterline\n", centres.size(), nl, h, nrows, b, L_beam, loaded.size(), n_top);
   std::printf("[strip] E = %.3g Pa, E_eff = 2sqrt2 k/D = %.4g Pa, EI_cont = %.4e, EI_lattice = %.4e "
               "(axial %.4e) N m^2 (ratio %.3f), L_c = %.3f m, beta = %.4f 1/m\n",
               ice.E, E_eff, EI_cont, EI_lat, EI_axial, EI_lat / EI_cont, Lc, beta);
