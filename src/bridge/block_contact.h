@@ -112,6 +112,10 @@ class BlockContact final : public bonded::ForceSource {
   void pack_history(const std::unordered_map<GlobalId, int>& leaving, std::vector<par::Bytes>& out) override;
   void unpack_history(const char* data, std::size_t size) override;
 
+  /// Checkpoint (hybrid_state.cpp): blocks, loads and accumulated impulses, tangential springs.
+  void save_state(StateArchive& a, const std::string& prefix) const;
+  void load_state(const StateArchive& a, const std::string& prefix);
+
  private:
   struct Key {
     GlobalId gid;

@@ -2,11 +2,13 @@
 #include "sim/recorder.h"
 
 #include "analysis/pile_height.h"
+#include "common/state_archive.h"
 #include "io/run_file.h"
 #include "parallel/comm.h"
 
 #include <cmath>
 #include <iterator>
+#include <stdexcept>
 #include <string>
 
 namespace hs::sim {
@@ -40,6 +42,8 @@ class TimeRecorder : public Recorder {
     ++rows_;
   }
   void figures(RunFigures& fig) const override { fig.rows = rows_; }
+  void save(StateArchive& a, const std::string& p) const override { a.put_value(p + "rows", rows_); }
+  void load(const StateArchive& a, const std::string& p) override { rows_ = a.get_value<std::uint64_t>(p + "rows"); }
 
  private:
   int id_time_ = -1, id_step_ = -1;
@@ -87,6 +91,18 @@ class WallsRecorder : public Recorder {
   void figures(RunFigures& fig) const override {
     fig.wall_peak = peak_;
     fig.wall_peak_time = peak_time_;
+  }
+  void save(StateArchive& a, const std::string& p) const override {
+    a.put(p + "sum", sum_);
+    a.put(p + "peak", peak_);
+    a.put(p + "peak_time", peak_time_);
+    a.put_value(p + "n", n_);
+  }
+  void load(const StateArchive& a, const std::string& p) override {
+    a.get_into(p + "sum", sum_);
+    a.get_into(p + "peak", peak_);
+    a.get_into(p + "peak_time", peak_time_);
+    n_ = a.get_value<std::uint64_t>(p + "n");
   }
 
  private:
@@ -161,6 +177,33 @@ class StructureLoadRecorder : public Recorder {
     fig.peak_step_time = peak_step_time_;
     fig.mean_force = steps_ ? Vec3(total_ / static_cast<double>(steps_)) : Vec3::Zero();
   }
+  void save(StateArchive& a, const std::string& p) const override {
+    a.put_value(p + "force", force_);
+    a.put_value(p + "moment", moment_);
+    a.put(p + "part_force", pf_);
+    a.put(p + "part_moment", pm_);
+    a.put_value(p + "total", total_);
+    const std::uint64_t c[2] = {n_, steps_};
+    a.put(p + "counts", std::vector<std::uint64_t>(c, c + 2));
+    const double d[4] = {peak_h_, peak_h_time_, peak_step_, peak_step_time_};
+    a.put(p + "peaks", std::vector<double>(d, d + 4));
+  }
+  void load(const StateArchive& a, const std::string& p) override {
+    force_ = a.get_value<Mean3>(p + "force");
+    moment_ = a.get_value<Mean3>(p + "moment");
+    a.get_into(p + "part_force", pf_);
+    a.get_into(p + "part_moment", pm_);
+    total_ = a.get_value<Vec3>(p + "total");
+    const auto c = a.get<std::uint64_t>(p + "counts");
+    const auto d = a.get<double>(p + "peaks");
+    if (c.size() != 2 || d.size() != 4) throw std::runtime_error("checkpoint: structure load recorder of another version");
+    n_ = c[0];
+    steps_ = c[1];
+    peak_h_ = d[0];
+    peak_h_time_ = d[1];
+    peak_step_ = d[2];
+    peak_step_time_ = d[3];
+  }
 
  private:
   std::vector<std::string> parts_;
@@ -198,6 +241,15 @@ class PileHeightRecorder : public Recorder {
   void figures(RunFigures& fig) const override {
     fig.max_pile = max_;
     fig.max_pile_time = max_time_;
+  }
+  void save(StateArchive& a, const std::string& p) const override {
+    a.put(p + "max", std::vector<double>{max_, max_time_});
+  }
+  void load(const StateArchive& a, const std::string& p) override {
+    const auto d = a.get<double>(p + "max");
+    if (d.size() != 2) throw std::runtime_error("checkpoint: pile height recorder of another version");
+    max_ = d[0];
+    max_time_ = d[1];
   }
 
  private:
@@ -240,6 +292,14 @@ class BlocksRecorder : public Recorder {
     f.append(id_conv_, &nconv);
     f.append(id_joints_, &nj);
     n_ = 0;
+  }
+  void save(StateArchive& a, const std::string& p) const override {
+    a.put_value(p + "force", force_);
+    a.put_value(p + "n", n_);
+  }
+  void load(const StateArchive& a, const std::string& p) override {
+    force_ = a.get_value<Mean3>(p + "force");
+    n_ = a.get_value<std::uint64_t>(p + "n");
   }
 
  private:
@@ -335,6 +395,8 @@ class SnapshotRecorder : public Recorder {
     ++count_;
   }
   void figures(RunFigures& fig) const override { fig.snapshots = count_; }
+  void save(StateArchive& a, const std::string& p) const override { a.put_value(p + "count", count_); }
+  void load(const StateArchive& a, const std::string& p) override { count_ = a.get_value<std::uint64_t>(p + "count"); }
 
  private:
   const par::Comm& comm_;
@@ -447,6 +509,18 @@ std::uint64_t Recorders::write_last_good(io::RunFile& file) {
 }
 
 double Recorders::last_good_time() const { return last_good_->time(); }
+
+void Recorders::save_state(StateArchive& a) const {
+  a.put_value("recorders/count", static_cast<std::uint64_t>(list_.size()));
+  for (std::size_t k = 0; k < list_.size(); ++k) list_[k]->save(a, "recorders/" + std::to_string(k) + "/");
+}
+
+void Recorders::load_state(const StateArchive& a, const Simulation& sim) {
+  if (a.get_value<std::uint64_t>("recorders/count") != list_.size())
+    throw std::runtime_error("checkpoint: the run has another set of output series");
+  for (std::size_t k = 0; k < list_.size(); ++k) list_[k]->load(a, "recorders/" + std::to_string(k) + "/");
+  last_good_->keep(sim);
+}
 
 RunFigures Recorders::figures() const {
   RunFigures f;

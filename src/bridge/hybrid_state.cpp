@@ -1,0 +1,148 @@
+// Checkpoint state of the hybrid system (docs/output.md, "Checkpoints"): the rigid world, the
+// particle-block contact and bonds, and the stepper's own bookkeeping.
+#include "bridge/block_bonds.h"
+#include "bridge/block_contact.h"
+#include "bridge/hybrid.h"
+#include "bridge/hybrid_impl.h"
+
+#include "common/state_archive.h"
+
+#include <stdexcept>
+
+namespace hs::bridge {
+
+namespace {
+
+struct ContactHistoryRecord {
+  GlobalId gid;
+  std::uint64_t block;
+  Vec3 xi;
+};
+
+}  // namespace
+
+void BlockContact::save_state(StateArchive& a, const std::string& p) const {
+  a.put(p + "blocks", blocks_);
+  a.put(p + "loads", loads_);
+  std::vector<ContactHistoryRecord> h;
+  h.reserve(history_.size());
+  for (const auto& [k, xi] : history_) h.push_back({k.gid, k.block, xi});
+  a.put(p + "history", h);
+  a.put(p + "rot", rot_);
+}
+
+void BlockContact::load_state(const StateArchive& a, const std::string& p) {
+  a.get_into(p + "blocks", blocks_);
+  a.get_into(p + "loads", loads_);
+  if (loads_.size() != blocks_.size()) throw std::runtime_error("block contact checkpoint: loads and blocks differ");
+  history_.clear();
+  next_history_.clear();
+  for (const auto& r : a.get<ContactHistoryRecord>(p + "history")) history_.emplace(Key{r.gid, r.block}, r.xi);
+  a.get_into(p + "rot", rot_);
+  recorded_.clear();
+}
+
+void BlockParticleBonds::save_state(StateArchive& a, const std::string& p) const {
+  a.put(p + "blocks", blocks_);
+  a.put(p + "bonds", bonds_);
+  a.put(p + "cached_index", cached_index_);
+  a.put(p + "impulse", impulse_);
+  a.put(p + "angular_impulse", angular_impulse_);
+  a.put_value(p + "intact", static_cast<std::uint64_t>(n_intact_));
+  a.put_value(p + "stats", stats_);
+}
+
+void BlockParticleBonds::load_state(const StateArchive& a, const std::string& p) {
+  a.get_into(p + "blocks", blocks_);
+  a.get_into(p + "bonds", bonds_);
+  a.get_into(p + "cached_index", cached_index_);
+  a.get_into(p + "impulse", impulse_);
+  a.get_into(p + "angular_impulse", angular_impulse_);
+  n_intact_ = static_cast<std::size_t>(a.get_value<std::uint64_t>(p + "intact"));
+  stats_ = a.get_value<BlockBondStats>(p + "stats");
+  recorded_.clear();
+}
+
+namespace {
+
+// The report's counters that change while the run goes (the rest is set again by the build).
+std::vector<std::uint64_t> report_counts(const HybridReport& r) {
+  return {r.conversions,         r.particles_created,        r.bonds_created,          r.sites_dropped,
+          static_cast<std::uint64_t>(r.peak_particles),       r.rigid_steps,            r.conversions_freeze,
+          r.conversions_flexure, r.joints_released,          r.conversions_refused,    r.blocks_now,
+          r.ice_bonds_created,   r.block_bonds_handed_over,  r.block_bonds_unmatched,  r.joints_to_bonds};
+}
+void set_report_counts(HybridReport& r, const std::vector<std::uint64_t>& c) {
+  if (c.size() != 15) throw std::runtime_error("hybrid checkpoint: report counters of another version");
+  std::uint64_t peak = 0;
+  std::uint64_t blocks_now = 0;
+  std::uint64_t* dst[15] = {&r.conversions,         &r.particles_created,       &r.bonds_created,
+                            &r.sites_dropped,       &peak,                      &r.rigid_steps,
+                            &r.conversions_freeze,  &r.conversions_flexure,     &r.joints_released,
+                            &r.conversions_refused, &blocks_now,                &r.ice_bonds_created,
+                            &r.block_bonds_handed_over, &r.block_bonds_unmatched, &r.joints_to_bonds};
+  for (int k = 0; k < 15; ++k) *dst[k] = c[static_cast<std::size_t>(k)];
+  r.peak_particles = static_cast<std::int64_t>(peak);
+  r.blocks_now = static_cast<std::size_t>(blocks_now);
+}
+
+}  // namespace
+
+void HybridSystem::save_state(StateArchive& a, const std::string& p) const {
+  const Impl& m = *impl_;
+  a.put(p + "report_counts", report_counts(report_));
+  a.put(p + "report_by_criterion", report_.conversions_by_criterion);
+  const double rd[5] = {report_.max_utilisation, report_.seconds_rigid, report_.seconds_bonded,
+                        report_.seconds_bridge, report_.kinetic_energy_change};
+  a.put(p + "report_doubles", std::vector<double>(rd, rd + 5));
+  if (!world_) return;
+  world_->save_state(a, p + "rigid/");
+  m.contact.save_state(a, p + "contact/");
+  m.bonds.save_state(a, p + "bonds/");
+  a.put_value(p + "since_rigid", m.since_rigid);
+  a.put_value(p + "bonds_broken_synced", m.bonds_broken_synced);
+  a.put(p + "ids", m.ids);
+  a.put(p + "unconvertible", m.unconvertible);
+  a.put(p + "u_filtered", m.u_filtered);
+  a.put(p + "ref", m.ref);
+  a.put_value(p + "t_ref", m.t_ref);
+  a.put(p + "coupler_linear", m.coupler.linear());
+  a.put(p + "coupler_angular", m.coupler.angular());
+}
+
+std::size_t HybridSystem::load_state(const StateArchive& a, const std::string& p) {
+  Impl& m = *impl_;
+  set_report_counts(report_, a.get<std::uint64_t>(p + "report_counts"));
+  a.get_into(p + "report_by_criterion", report_.conversions_by_criterion);
+  const auto rd = a.get<double>(p + "report_doubles");
+  if (rd.size() != 5) throw std::runtime_error("hybrid checkpoint: report figures of another version");
+  report_.max_utilisation = rd[0];
+  report_.seconds_rigid = rd[1];
+  report_.seconds_bonded = rd[2];
+  report_.seconds_bridge = rd[3];
+  report_.kinetic_energy_change = rd[4];
+  if (!world_) {
+    if (a.has(p + "rigid/blocks")) throw std::runtime_error("hybrid checkpoint: it has rigid blocks, the scene none");
+    return 0;
+  }
+  const std::size_t lost = world_->load_state(a, p + "rigid/");
+  m.contact.load_state(a, p + "contact/");
+  m.bonds.load_state(a, p + "bonds/");
+  m.since_rigid = a.get_value<std::uint64_t>(p + "since_rigid");
+  m.bonds_broken_synced = a.get_value<std::uint64_t>(p + "bonds_broken_synced");
+  a.get_into(p + "ids", m.ids);
+  a.get_into(p + "unconvertible", m.unconvertible);
+  a.get_into(p + "u_filtered", m.u_filtered);
+  a.get_into(p + "ref", m.ref);
+  m.t_ref = a.get_value<double>(p + "t_ref");
+  if (!(m.ids == world_->blocks()) || m.ref.size() != m.ids.size() || m.contact.size() != m.ids.size())
+    throw std::runtime_error("hybrid checkpoint: the blocks of the checkpoint and of the restored world differ");
+  m.coupler.reset(world_->blocks());
+  const auto cl = a.get<Vec3>(p + "coupler_linear"), ca = a.get<Vec3>(p + "coupler_angular");
+  for (std::size_t k = 0; k < cl.size() && k < m.ids.size(); ++k)
+    if (!cl[k].isZero(0.0) || !ca[k].isZero(0.0))
+      throw std::runtime_error("hybrid checkpoint: impulses pending in the coupler (saved mid rigid step)");
+  return lost;
+}
+
+}  // namespace hs::bridge
