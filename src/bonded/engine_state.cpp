@@ -8,6 +8,7 @@
 
 #include "common/state_archive.h"
 
+#include <cstring>
 #include <stdexcept>
 
 namespace hs::bonded {
@@ -25,11 +26,38 @@ struct PairHistoryRecord {
   Vec3 xi;
 };
 
+/// A bond without padding (Bond has a 1-byte kind before 8-byte fields: its padding bytes are
+/// whatever the last copy left, and equal states must save equal bytes).
+struct BondRecord {
+  std::uint32_t i, j;
+  GlobalId gi, gj;
+  std::uint64_t kind;
+  double ri[3], rj[3], c[4];  // BondRef: lever arms, q_j0^* q_i0 (w, x, y, z)
+};
+
+BondRecord to_record(const Bond& b) {
+  return BondRecord{b.i, b.j, b.gi, b.gj, static_cast<std::uint64_t>(b.kind),
+                    {b.ref.ri.x(), b.ref.ri.y(), b.ref.ri.z()}, {b.ref.rj.x(), b.ref.rj.y(), b.ref.rj.z()},
+                    {b.ref.c.w(), b.ref.c.x(), b.ref.c.y(), b.ref.c.z()}};
+}
+Bond from_record(const BondRecord& r) {
+  Bond b;
+  b.i = r.i;
+  b.j = r.j;
+  b.gi = r.gi;
+  b.gj = r.gj;
+  b.kind = static_cast<BondKind>(r.kind);
+  b.ref.ri = Vec3(r.ri[0], r.ri[1], r.ri[2]);
+  b.ref.rj = Vec3(r.rj[0], r.rj[1], r.rj[2]);
+  b.ref.c = Quat(r.c[0], r.c[1], r.c[2], r.c[3]);
+  return b;
+}
+
 /// Flags and scalars of the engine, one record.
 struct EngineScalars {
-  double max_disp2, dt, min_radius, history_dt, time, halo, max_bond_length, force_seconds_since_balance;
+  double max_disp2, dt, min_radius, history_dt, time, halo, max_bond_length;
   std::uint64_t step, last_balance_step, n_owned, n_ghost, next_gid;
-  std::uint8_t forces_valid, need_rebuild, dt_auto, distributed;
+  std::uint64_t forces_valid, need_rebuild, dt_auto, distributed;  // 8-byte fields only: no padding
 };
 
 template <class T>
@@ -77,7 +105,10 @@ void Engine::save_state(StateArchive& a, const std::string& p) const {
   a.put(p + "material", s.material);
   a.put(p + "flags", s.flags);
   a.put(p + "bond_count", s.bond_count);
-  a.put(p + "bonds", bonds_);
+  std::vector<BondRecord> bonds;
+  bonds.reserve(bonds_.size());
+  for (const Bond& b : bonds_) bonds.push_back(to_record(b));
+  a.put(p + "bonds", bonds);
   a.put(p + "pairs", pairs_);
   std::vector<Vec3> wall_points;
   for (const auto& w : walls_) wall_points.push_back(w.point);
@@ -105,10 +136,12 @@ void Engine::save_state(StateArchive& a, const std::string& p) const {
   a.put(p + "x_at_build", x_at_build_);
   a.put_value(p + "stats", stats_);
   a.put_value(p + "parallel_stats", pstats_);
-  EngineScalars sc{max_disp2_, dt_, min_radius_, history_dt_, time_, halo_, max_bond_length_,
-                   force_seconds_since_balance_, step_, last_balance_step_, s.n_owned, s.n_ghost, s.next_gid(),
-                   forces_valid_, need_rebuild_, dt_auto_, distributed_};
+  const EngineScalars sc{max_disp2_, dt_, min_radius_, history_dt_, time_, halo_, max_bond_length_,
+                     step_, last_balance_step_, s.n_owned, s.n_ghost, s.next_gid(),
+                     forces_valid_, need_rebuild_, dt_auto_, distributed_};
   a.put_value(p + "scalars", sc);
+  // Wall-clock figures (the "time" cost model's measure): the same physics with other timings.
+  a.put_value(p + "parallel_stats_balance_seconds", force_seconds_since_balance_);
   // MPI: the cuts and the ghost exchange lists of the last rebuild.
   for (int ax = 0; ax < 3; ++ax) a.put(p + "cuts_" + std::to_string(ax), dom_.cuts(ax));
   a.put(p + "dims", std::vector<int>(dom_.dims().begin(), dom_.dims().end()));
@@ -152,7 +185,8 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
   s.n_ghost = sc.n_ghost;
   s.advance_gid(sc.next_gid);
   s.rebuild_index();
-  a.get_into(p + "bonds", bonds_);
+  bonds_.clear();
+  for (const BondRecord& r : a.get<BondRecord>(p + "bonds")) bonds_.push_back(from_record(r));
   a.get_into(p + "pairs", pairs_);
   const auto wall_points = a.get<Vec3>(p + "wall_points");
   if (wall_points.size() != walls_.size()) throw std::runtime_error("engine checkpoint: another number of walls");
@@ -191,7 +225,7 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
   time_ = sc.time;
   halo_ = sc.halo;
   max_bond_length_ = sc.max_bond_length;
-  force_seconds_since_balance_ = sc.force_seconds_since_balance;
+  force_seconds_since_balance_ = a.get_value<double>(p + "parallel_stats_balance_seconds");
   step_ = sc.step;
   last_balance_step_ = sc.last_balance_step;
   forces_valid_ = sc.forces_valid != 0;

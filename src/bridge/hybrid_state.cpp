@@ -19,6 +19,13 @@ struct ContactHistoryRecord {
   Vec3 xi;
 };
 
+/// A block-particle bond without padding (see BondRecord in bonded/engine_state.cpp).
+struct BlockBondRecord {
+  GlobalId gid;
+  std::uint64_t block, broken;
+  double anchor[3], ri[3], rj[3], c[4];
+};
+
 }  // namespace
 
 void BlockContact::save_state(StateArchive& a, const std::string& p) const {
@@ -44,7 +51,12 @@ void BlockContact::load_state(const StateArchive& a, const std::string& p) {
 
 void BlockParticleBonds::save_state(StateArchive& a, const std::string& p) const {
   a.put(p + "blocks", blocks_);
-  a.put(p + "bonds", bonds_);
+  std::vector<BlockBondRecord> bonds;
+  for (const BlockParticleBond& b : bonds_)
+    bonds.push_back({b.gid, b.block, b.broken ? 1u : 0u, {b.anchor.x(), b.anchor.y(), b.anchor.z()},
+                     {b.ref.ri.x(), b.ref.ri.y(), b.ref.ri.z()}, {b.ref.rj.x(), b.ref.rj.y(), b.ref.rj.z()},
+                     {b.ref.c.w(), b.ref.c.x(), b.ref.c.y(), b.ref.c.z()}});
+  a.put(p + "bonds", bonds);
   a.put(p + "cached_index", cached_index_);
   a.put(p + "impulse", impulse_);
   a.put(p + "angular_impulse", angular_impulse_);
@@ -54,7 +66,18 @@ void BlockParticleBonds::save_state(StateArchive& a, const std::string& p) const
 
 void BlockParticleBonds::load_state(const StateArchive& a, const std::string& p) {
   a.get_into(p + "blocks", blocks_);
-  a.get_into(p + "bonds", bonds_);
+  bonds_.clear();
+  for (const BlockBondRecord& r : a.get<BlockBondRecord>(p + "bonds")) {
+    BlockParticleBond b;
+    b.gid = r.gid;
+    b.block = static_cast<std::uint32_t>(r.block);
+    b.broken = r.broken != 0;
+    b.anchor = Vec3(r.anchor[0], r.anchor[1], r.anchor[2]);
+    b.ref.ri = Vec3(r.ri[0], r.ri[1], r.ri[2]);
+    b.ref.rj = Vec3(r.rj[0], r.rj[1], r.rj[2]);
+    b.ref.c = Quat(r.c[0], r.c[1], r.c[2], r.c[3]);
+    bonds_.push_back(b);
+  }
   a.get_into(p + "cached_index", cached_index_);
   a.get_into(p + "impulse", impulse_);
   a.get_into(p + "angular_impulse", angular_impulse_);

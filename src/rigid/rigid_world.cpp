@@ -9,6 +9,7 @@
 #include <btBulletDynamicsCommon.h>
 
 #include <algorithm>
+#include <cstring>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -659,22 +660,51 @@ std::size_t RigidWorld::joint_count() const { return impl_->intact_joints; }
 
 namespace {
 
-/// One rigid body's state as Bullet holds it (raw btTransform / btVector3 bytes: exact).
+// The records below hold 8-byte fields only: no padding, so equal states save equal bytes
+// (a padding byte is whatever the last copy left there).
+
+/// One rigid body's state as Bullet holds it: transforms as 3 basis rows + origin.
 struct BodyRecord {
-  btTransform world, interpolation;
-  btVector3 lin_vel, ang_vel, interp_lin_vel, interp_ang_vel;
-  int activation = 0;
-  btScalar deactivation_time = 0, hit_fraction = 1, friction = 0;
+  double world[12], interpolation[12];
+  double lin_vel[3], ang_vel[3], interp_lin_vel[3], interp_ang_vel[3];
+  std::int64_t activation;
+  double deactivation_time, hit_fraction, friction;
 };
 
+void put3(double* d, const btVector3& v) {
+  d[0] = v.x();
+  d[1] = v.y();
+  d[2] = v.z();
+}
+btVector3 get3(const double* d) { return btVector3(d[0], d[1], d[2]); }
+void put_tr(double* d, const btTransform& t) {
+  for (int r = 0; r < 3; ++r) put3(d + 3 * r, t.getBasis()[r]);
+  put3(d + 9, t.getOrigin());
+}
+btTransform get_tr(const double* d) {
+  return btTransform(btMatrix3x3(d[0], d[1], d[2], d[3], d[4], d[5], d[6], d[7], d[8]), get3(d + 9));
+}
+
+/// A record with every byte set (padding zeroed), so that equal states save equal bytes.
+template <class T>
+T zeroed() {
+  T r;
+  std::memset(static_cast<void*>(&r), 0, sizeof r);
+  return r;
+}
+
+/// x, y, z of a Bullet vector with its unused fourth component zeroed (Bullet leaves whatever
+/// its arithmetic put there, which depends on the history).
+btVector3 v3(const btVector3& v) { return btVector3(v.x(), v.y(), v.z()); }
+
 BodyRecord body_record(const btRigidBody& b) {
-  BodyRecord r;
-  r.world = b.getWorldTransform();
-  r.interpolation = b.getInterpolationWorldTransform();
-  r.lin_vel = b.getLinearVelocity();
-  r.ang_vel = b.getAngularVelocity();
-  r.interp_lin_vel = b.getInterpolationLinearVelocity();
-  r.interp_ang_vel = b.getInterpolationAngularVelocity();
+  BodyRecord r = zeroed<BodyRecord>();
+  put_tr(r.world, b.getWorldTransform());
+  put_tr(r.interpolation, b.getInterpolationWorldTransform());
+  put3(r.lin_vel, b.getLinearVelocity());
+  put3(r.ang_vel, b.getAngularVelocity());
+  put3(r.interp_lin_vel, b.getInterpolationLinearVelocity());
+  put3(r.interp_ang_vel, b.getInterpolationAngularVelocity());
   r.activation = b.getActivationState();
   r.deactivation_time = b.getDeactivationTime();
   r.hit_fraction = b.getHitFraction();
@@ -682,14 +712,49 @@ BodyRecord body_record(const btRigidBody& b) {
   return r;
 }
 
+/// A contact point copied field by field into a zeroed one (the padding of Bullet's own copy
+/// depends on the manifold's history).
+btManifoldPoint clean_point(const btManifoldPoint& p) {
+  btManifoldPoint q = zeroed<btManifoldPoint>();
+  q.m_localPointA = v3(p.m_localPointA);
+  q.m_localPointB = v3(p.m_localPointB);
+  q.m_positionWorldOnB = v3(p.m_positionWorldOnB);
+  q.m_positionWorldOnA = v3(p.m_positionWorldOnA);
+  q.m_normalWorldOnB = v3(p.m_normalWorldOnB);
+  q.m_distance1 = p.m_distance1;
+  q.m_combinedFriction = p.m_combinedFriction;
+  q.m_combinedRollingFriction = p.m_combinedRollingFriction;
+  q.m_combinedSpinningFriction = p.m_combinedSpinningFriction;
+  q.m_combinedRestitution = p.m_combinedRestitution;
+  q.m_partId0 = p.m_partId0;
+  q.m_partId1 = p.m_partId1;
+  q.m_index0 = p.m_index0;
+  q.m_index1 = p.m_index1;
+  q.m_userPersistentData = nullptr;
+  q.m_contactPointFlags = p.m_contactPointFlags;
+  q.m_appliedImpulse = p.m_appliedImpulse;
+  q.m_prevRHS = p.m_prevRHS;
+  q.m_appliedImpulseLateral1 = p.m_appliedImpulseLateral1;
+  q.m_appliedImpulseLateral2 = p.m_appliedImpulseLateral2;
+  q.m_contactMotion1 = p.m_contactMotion1;
+  q.m_contactMotion2 = p.m_contactMotion2;
+  q.m_contactCFM = p.m_contactCFM;  // union with m_combinedContactStiffness1
+  q.m_contactERP = p.m_contactERP;  // union with m_combinedContactDamping1
+  q.m_frictionCFM = p.m_frictionCFM;
+  q.m_lifeTime = p.m_lifeTime;
+  q.m_lateralFrictionDir1 = v3(p.m_lateralFrictionDir1);
+  q.m_lateralFrictionDir2 = v3(p.m_lateralFrictionDir2);
+  return q;
+}
+
 void apply_record(btRigidBody& b, const BodyRecord& r) {
-  b.setCenterOfMassTransform(r.world);  // also the world inertia tensor, from the basis
-  b.setInterpolationWorldTransform(r.interpolation);
-  b.setLinearVelocity(r.lin_vel);
-  b.setAngularVelocity(r.ang_vel);
-  b.setInterpolationLinearVelocity(r.interp_lin_vel);
-  b.setInterpolationAngularVelocity(r.interp_ang_vel);
-  b.forceActivationState(r.activation);
+  b.setCenterOfMassTransform(get_tr(r.world));  // also the world inertia tensor, from the basis
+  b.setInterpolationWorldTransform(get_tr(r.interpolation));
+  b.setLinearVelocity(get3(r.lin_vel));
+  b.setAngularVelocity(get3(r.ang_vel));
+  b.setInterpolationLinearVelocity(get3(r.interp_lin_vel));
+  b.setInterpolationAngularVelocity(get3(r.interp_ang_vel));
+  b.forceActivationState(static_cast<int>(r.activation));
   b.setDeactivationTime(r.deactivation_time);
   b.setHitFraction(r.hit_fraction);
   b.setFriction(r.friction);
@@ -705,7 +770,7 @@ struct BlockRecord {
 struct JointRecord {
   std::uint32_t generation = 0, alive = 0, broken = 0, has_constraint = 0;
   JointLoad load;
-  btJointFeedback feedback;
+  double feedback[4][3];  ///< btJointFeedback: force and torque on A, on B
 };
 
 struct MeshRecord {
@@ -723,7 +788,7 @@ struct ManifoldRecord {
 
 void RigidWorld::save_state(StateArchive& a, const std::string& p) const {
   const Impl& m = *impl_;
-  std::vector<BlockRecord> blocks(m.blocks.size());
+  std::vector<BlockRecord> blocks(m.blocks.size(), zeroed<BlockRecord>());
   for (std::size_t k = 0; k < m.blocks.size(); ++k) {
     const BlockSlot& s = m.blocks[k];
     BlockRecord& r = blocks[k];
@@ -737,10 +802,19 @@ void RigidWorld::save_state(StateArchive& a, const std::string& p) const {
   }
   a.put(p + "blocks", blocks);
   a.put(p + "free_blocks", m.free_blocks);
-  std::vector<JointRecord> joints(m.joints.size());
+  std::vector<JointRecord> joints(m.joints.size(), zeroed<JointRecord>());
   for (std::size_t k = 0; k < m.joints.size(); ++k) {
     const JointSlot& j = *m.joints[k];
-    joints[k] = {j.generation, j.alive, j.broken, j.constraint ? 1u : 0u, j.load, j.feedback};
+    JointRecord& r = joints[k];
+    r.generation = j.generation;
+    r.alive = j.alive;
+    r.broken = j.broken;
+    r.has_constraint = j.constraint ? 1u : 0u;
+    r.load = j.load;
+    put3(r.feedback[0], j.feedback.m_appliedForceBodyA);
+    put3(r.feedback[1], j.feedback.m_appliedTorqueBodyA);
+    put3(r.feedback[2], j.feedback.m_appliedForceBodyB);
+    put3(r.feedback[3], j.feedback.m_appliedTorqueBodyB);
   }
   a.put(p + "joints", joints);
   a.put(p + "free_joints", m.free_joints);
@@ -748,7 +822,10 @@ void RigidWorld::save_state(StateArchive& a, const std::string& p) const {
   std::vector<Vec3> mesh_loads;  // per mesh: force, moment, then parts' force and moment
   std::vector<std::uint64_t> mesh_contacts;
   for (const auto& ms : m.meshes) {
-    meshes.push_back({ms->origin, body_record(*ms->body)});
+    MeshRecord r = zeroed<MeshRecord>();
+    r.origin = ms->origin;
+    r.body = body_record(*ms->body);
+    meshes.push_back(r);
     mesh_loads.push_back(ms->load.force);
     mesh_loads.push_back(ms->load.moment);
     mesh_loads.insert(mesh_loads.end(), ms->load.part_force.begin(), ms->load.part_force.end());
@@ -764,17 +841,14 @@ void RigidWorld::save_state(StateArchive& a, const std::string& p) const {
   detail::sorted_manifolds(m.dispatcher.get(), sorted);
   for (const btPersistentManifold* man : sorted) {
     if (man->getNumContacts() == 0) continue;
-    ManifoldRecord r;
+    ManifoldRecord r = zeroed<ManifoldRecord>();
     r.key0 = detail::body_key(man->getBody0());
     r.key1 = detail::body_key(man->getBody1());
     r.first_point = static_cast<std::uint32_t>(points.size());
     r.points = static_cast<std::uint32_t>(man->getNumContacts());
     r.breaking = man->getContactBreakingThreshold();
     r.processing = man->getContactProcessingThreshold();
-    for (int c = 0; c < man->getNumContacts(); ++c) {
-      points.push_back(man->getContactPoint(c));
-      points.back().m_userPersistentData = nullptr;
-    }
+    for (int c = 0; c < man->getNumContacts(); ++c) points.push_back(clean_point(man->getContactPoint(c)));
     manifolds.push_back(r);
   }
   a.put(p + "manifolds", manifolds);
@@ -809,7 +883,10 @@ std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) 
     j.alive = joints[k].alive != 0;
     j.broken = joints[k].broken != 0;
     j.load = joints[k].load;
-    j.feedback = joints[k].feedback;
+    j.feedback.m_appliedForceBodyA = get3(joints[k].feedback[0]);
+    j.feedback.m_appliedTorqueBodyA = get3(joints[k].feedback[1]);
+    j.feedback.m_appliedForceBodyB = get3(joints[k].feedback[2]);
+    j.feedback.m_appliedTorqueBodyB = get3(joints[k].feedback[3]);
   }
   m.free_joints = a.get<std::uint32_t>(p + "free_joints");
   for (std::uint32_t k = 0; k < blocks.size(); ++k) {
