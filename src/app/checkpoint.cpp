@@ -93,11 +93,10 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
                                       (where.empty() ? std::string() : ", first at " + where) +
                                       "; restart with the same scene file and --set options");
   }
-  if (r.meta.ranks != comm.size())
-    throw InputError("--restart", "the checkpoint '" + r.checkpoint_file + "' was written by " +
-                                      std::to_string(r.meta.ranks) + " rank(s); restart it with mpirun -np " +
-                                      std::to_string(r.meta.ranks) + " (another rank count is not supported yet)");
-  r.state = io::read_checkpoint_rank(r.checkpoint_file, comm.rank());
+  if (r.meta.ranks == comm.size())
+    r.state = io::read_checkpoint_rank(r.checkpoint_file, comm.rank());
+  else
+    for (int k = 0; k < r.meta.ranks; ++k) r.all.push_back(io::read_checkpoint_rank(r.checkpoint_file, k));
   r.series = io::read_series_rows(r.run_file, r.meta.series_rows);
   return r;
 }
@@ -105,19 +104,32 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
 std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& rec, io::RunFile& file,
                             std::FILE* progress) {
   try {
-    sim.engine().load_state(r.state, "engine/");
-    const std::size_t lost = sim.hybrid().load_state(r.state, "hybrid/");
+    std::size_t lost = 0;
+    if (r.all.empty()) {  // same rank count: each rank its own state, exactly
+      sim.engine().load_state(r.state, "engine/");
+      lost = sim.hybrid().load_state(r.state, "hybrid/");
+      rec.load_state(r.state, sim);
+    } else {  // another rank count: the union of the saved ranks, spread over these ranks
+      std::fprintf(progress,
+                   "hybridsim: the checkpoint was written by %d rank(s), this run has %d: the particles are "
+                   "redistributed (the same physics; sums in another order, round-off differences)\n",
+                   r.meta.ranks, sim.engine().comm().size());
+      lost = sim.hybrid().load_state_union(r.all, "hybrid/");
+      sim.engine().load_state_union(r.all, "engine/");
+      rec.load_state(r.all.front(), sim);
+    }
     if (lost)
       std::fprintf(progress, "hybridsim: warning: %zu saved rigid contact points found no contact manifold after the "
                              "restore; the continuation may differ from the original run in the last bits\n", lost);
-    rec.load_state(r.state, sim);
   } catch (const InputError&) {
     throw;
   } catch (const std::exception& e) {
     throw InputError("--restart", "the checkpoint '" + r.checkpoint_file + "' does not fit the scene as built: " +
                                       e.what());
   }
-  // The rows up to the checkpoint, series by series in the order the recorders declared them.
+  // The snapshots written up to the checkpoint (a stop's extra snapshot is not counted), then the
+  // rows up to it, series by series in the order the recorders declared them.
+  io::copy_snapshots(r.run_file, r.meta.snapshots, file, sim.engine().comm().rank(), sim.engine().comm().size());
   for (int id = 0; id < file.series_count(); ++id) {
     const std::string& path = file.series_path(id);
     const io::SeriesRows* src = nullptr;
@@ -137,6 +149,7 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
   file.flush();
   r.series.clear();
   r.state.entries.clear();
+  r.all.clear();
   return sim.engine().step_count();
 }
 

@@ -42,18 +42,21 @@ struct Restart {
   std::string run_file;         ///< the run file whose series rows continue (may be a partial name)
   std::string checkpoint_file;  ///< <run>.ckpt.h5
   io::CheckpointMeta meta;
-  StateArchive state;           ///< this rank's
+  StateArchive state;           ///< this rank's (same rank count)
+  std::vector<StateArchive> all;  ///< every saved rank's (another rank count)
   std::vector<io::SeriesRows> series;
 };
 
 /// Reads the checkpoint of `arg` (a run file "out.h5", its partial name, or "out.ckpt.h5") and
 /// the run file's series rows up to it. hs::InputError("--restart", ...) (exit 2) when there is
-/// no checkpoint, it was written for another scene (the first differing JSON path is named) or
-/// at another rank count, or the run file holds fewer rows than the checkpoint needs.
+/// no checkpoint, it was written for another scene (the first differing JSON path is named), or
+/// the run file holds fewer rows than the checkpoint needs. At another rank count every rank
+/// reads every saved rank's state (restored as their union, redistributed).
 Restart read_restart(const std::string& arg, const scene::Scene& s, const par::Comm& comm);
 
-/// Restores the simulation and the recorders from `r` and appends the saved series rows to
-/// `file` (whose series the recorders have declared). Returns the last completed step.
+/// Restores the simulation and the recorders from `r`, copies the snapshots up to the checkpoint
+/// and appends the saved series rows to `file` (whose series the recorders have declared).
+/// Returns the last completed step.
 std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& rec, io::RunFile& file,
                             std::FILE* progress);
 

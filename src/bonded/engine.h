@@ -336,6 +336,12 @@ class Engine {
   /// and definitions) and, under MPI, distributed over the same number of ranks. The next step
   /// then computes exactly what the saved engine's next step would have.
   void load_state(const StateArchive& a, const std::string& prefix);
+  /// Restores a checkpoint written at another rank count (`all`: every saved rank's archive):
+  /// the union of the saved ranks' owned particles, bonds and friction history becomes one
+  /// system, which this engine then spreads over its own ranks as distribute() does (collective;
+  /// every rank passes the same `all`). Forces are evaluated afresh at the first step, the
+  /// neighbour lists rebuilt: the same physics, summed in another order (round-off only).
+  void load_state_union(const std::vector<StateArchive>& all, const std::string& prefix);
 
   /// Forces for the current state without advancing anything: tangential springs are
   /// not incremented (a re-evaluation at the same state must not move them).

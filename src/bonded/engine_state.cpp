@@ -10,6 +10,8 @@
 
 #include <cstring>
 #include <stdexcept>
+#include <unordered_map>
+#include <utility>
 
 namespace hs::bonded {
 
@@ -240,6 +242,125 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
   }
   carried_history_.clear();
   for (const auto& r : a.get<PairHistoryRecord>(p + "carried_history")) carried_history_[GidPair{r.a, r.b}] = r.xi;
+}
+
+void Engine::load_state_union(const std::vector<StateArchive>& all, const std::string& p) {
+  if (all.empty()) throw std::runtime_error("engine checkpoint: no ranks");
+  const auto sc = all[0].get_value<EngineScalars>(p + "scalars");
+  // One system: every saved rank's owned particles, in rank order.
+  ps_.truncate(0);
+  ps_.n_owned = 0;
+  ps_.n_ghost = 0;
+  bonds_.clear();
+  pairs_.clear();
+  carried_history_.clear();
+  for (auto& m : meshes_) {
+    m.history.clear();
+    m.next_history.clear();
+  }
+  std::vector<std::vector<Vec3>> wall_hist(walls_.size());
+  std::vector<BondRecord> bond_records;
+  // The forces of the last step travel with their particles: evaluated again they would see the
+  // rigid blocks where the next step puts them, not where the last step had them.
+  std::unordered_map<GlobalId, std::pair<Vec3, Vec3>> force_of;
+  for (const StateArchive& a : all) {
+    const auto rs = a.get_value<EngineScalars>(p + "scalars");
+    const auto x = a.get<Vec3>(p + "x"), v = a.get<Vec3>(p + "v"), w = a.get<Vec3>(p + "omega");
+    const auto q = a.get<Quat>(p + "q");
+    const auto radius = a.get<double>(p + "radius"), inv_mass = a.get<double>(p + "inv_mass"),
+               inv_inertia = a.get<double>(p + "inv_inertia"), mass = a.get<double>(p + "mass"),
+               buoyant = a.get<double>(p + "buoyant_volume");
+    const auto gid = a.get<GlobalId>(p + "gid");
+    const auto material = a.get<MaterialIndex>(p + "material");
+    const auto flags = a.get<std::uint8_t>(p + "flags"), bond_count = a.get<std::uint8_t>(p + "bond_count");
+    if (rs.n_owned > x.size() || gid.size() != x.size())
+      throw std::runtime_error("engine checkpoint: particle counts disagree");
+    const auto f = a.get<Vec3>(p + "f"), t = a.get<Vec3>(p + "torque");
+    for (std::size_t i = 0; i < rs.n_owned; ++i) {
+      ps_.push(ParticleRecord{x[i], v[i], w[i], q[i], radius[i], inv_mass[i], inv_inertia[i], mass[i], buoyant[i],
+                              gid[i], material[i], flags[i], bond_count[i]});
+      force_of[gid[i]] = {f.at(i), t.at(i)};
+    }
+    const auto hist = get_nested<Vec3>(a, p + "wall_history");
+    if (hist.size() != walls_.size()) throw std::runtime_error("engine checkpoint: another number of walls");
+    for (std::size_t k = 0; k < walls_.size(); ++k)
+      wall_hist[k].insert(wall_hist[k].end(), hist[k].begin(), hist[k].begin() + static_cast<std::ptrdiff_t>(rs.n_owned));
+    const auto b = a.get<BondRecord>(p + "bonds");
+    bond_records.insert(bond_records.end(), b.begin(), b.end());
+    // Tangential springs of contact pairs, by global ids (as a neighbour rebuild carries them).
+    for (const ContactPair& c : a.get<ContactPair>(p + "pairs"))
+      if (c.xi.squaredNorm() > 0.0)
+        carried_history_.emplace(GidPair::of(gid[c.i], gid[c.j]), gid[c.i] < gid[c.j] ? c.xi : Vec3(-c.xi));
+    for (const auto& r : a.get<PairHistoryRecord>(p + "carried_history")) carried_history_.emplace(GidPair{r.a, r.b}, r.xi);
+    const auto mh = get_nested<MeshHistoryRecord>(a, p + "mesh_history");
+    if (mh.size() != meshes_.size()) throw std::runtime_error("engine checkpoint: another number of mesh walls");
+    for (std::size_t k = 0; k < meshes_.size(); ++k)
+      for (const auto& r : mh[k]) meshes_[k].history.emplace(MeshWall::Key{r.gid, r.feature}, r.xi);
+  }
+  ps_.n_owned = ps_.size();
+  ps_.advance_gid(sc.next_gid);
+  ps_.rebuild_index();
+  wall_hist_ = std::move(wall_hist);
+  for (const BondRecord& r : bond_records) {
+    Bond b = from_record(r);
+    b.i = ps_.local(b.gi);
+    b.j = ps_.local(b.gj);
+    if (b.i == ParticleStore::kNone || b.j == ParticleStore::kNone)
+      throw std::runtime_error("engine checkpoint: a bond names a particle no rank saved");
+    bonds_.push_back(b);
+  }
+  // What is global (walls, meshes, counters, time) from rank 0.
+  const StateArchive& a0 = all[0];
+  const auto wall_points = a0.get<Vec3>(p + "wall_points");
+  for (std::size_t k = 0; k < walls_.size(); ++k) walls_[k].point = wall_points.at(k);
+  a0.get_into(p + "wall_force", wall_force_);
+  const auto mesh_pos = a0.get<Vec3>(p + "mesh_position");
+  const auto mesh_loads = a0.get<Vec3>(p + "mesh_loads");
+  const auto mesh_contacts = a0.get<std::uint64_t>(p + "mesh_contacts");
+  std::size_t o = 0;
+  for (std::size_t k = 0; k < meshes_.size(); ++k) {
+    MeshWall& m = meshes_[k];
+    m.position = mesh_pos.at(k);
+    const std::size_t np = m.load.part_force.size();
+    if (o + 2 + 2 * np > mesh_loads.size()) throw std::runtime_error("engine checkpoint: mesh loads truncated");
+    m.load.force = mesh_loads[o];
+    m.load.moment = mesh_loads[o + 1];
+    std::copy(mesh_loads.begin() + o + 2, mesh_loads.begin() + o + 2 + np, m.load.part_force.begin());
+    std::copy(mesh_loads.begin() + o + 2 + np, mesh_loads.begin() + o + 2 + 2 * np, m.load.part_moment.begin());
+    o += 2 + 2 * np;
+    m.load.contacts = mesh_contacts.at(k);
+  }
+  stats_ = a0.get_value<StepStats>(p + "stats");
+  pstats_ = ParallelStats{};
+  dt_ = sc.dt;
+  dt_auto_ = sc.dt_auto != 0;
+  min_radius_ = sc.min_radius;
+  time_ = sc.time;
+  step_ = sc.step;
+  history_dt_ = 0.0;
+  max_bond_length_ = sc.max_bond_length;
+  force_seconds_since_balance_ = 0.0;
+  peers_.clear();
+  ghost_send_.clear();
+  ghost_start_.clear();
+  ghost_n_.clear();
+  if (comm_->parallel()) {  // every rank holds the whole system: spread it as a fresh build is
+    distributed_ = false;
+    const par::Comm& c = *comm_;
+    distribute(c, pdef_);
+  } else {
+    distributed_ = false;
+  }
+  for (std::size_t i = 0; i < ps_.owned(); ++i) {
+    const auto& ft = force_of.at(ps_.gid[i]);
+    ps_.f[i] = ft.first;
+    ps_.torque[i] = ft.second;
+  }
+  // The first step kicks with those forces and rebuilds the neighbour lists (and ghosts) first.
+  x_at_build_.assign(ps_.x.begin(), ps_.x.end());
+  max_disp2_ = 0.0;
+  need_rebuild_ = true;
+  forces_valid_ = true;
 }
 
 }  // namespace hs::bonded

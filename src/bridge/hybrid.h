@@ -190,6 +190,11 @@ class HybridSystem {
   /// Restores into a system built from the same scene (the engine is restored separately).
   /// Returns the contact points the rigid world could not place (rigid::RigidWorld::load_state).
   std::size_t load_state(const StateArchive& a, const std::string& prefix);
+  /// The same from a checkpoint written at another rank count (`all`: every saved rank's
+  /// archive; call before Engine::load_state_union, collective): the replicated parts from rank
+  /// 0, the per-rank parts merged (tangential springs united, impulses accumulated since the last
+  /// rigid step summed onto rank 0, broken flags of the block-particle bonds united).
+  std::size_t load_state_union(const std::vector<StateArchive>& all, const std::string& prefix);
 
  private:
   struct Impl;

@@ -168,4 +168,59 @@ std::size_t HybridSystem::load_state(const StateArchive& a, const std::string& p
   return lost;
 }
 
+void BlockContact::load_state_union(const std::vector<StateArchive>& all, const std::string& p, bool keep_sums) {
+  load_state(all.at(0), p);
+  for (auto& L : loads_) L = BlockLoad{};
+  for (const StateArchive& a : all) {
+    if (keep_sums) {
+      const auto loads = a.get<BlockLoad>(p + "loads");
+      if (loads.size() != loads_.size()) throw std::runtime_error("block contact checkpoint: ranks disagree");
+      for (std::size_t k = 0; k < loads.size(); ++k) {
+        loads_[k].force += loads[k].force;
+        loads_[k].torque += loads[k].torque;
+        loads_[k].impulse += loads[k].impulse;
+        loads_[k].angular_impulse += loads[k].angular_impulse;
+        loads_[k].contacts += loads[k].contacts;
+      }
+    }
+    for (const auto& r : a.get<ContactHistoryRecord>(p + "history")) history_.emplace(Key{r.gid, r.block}, r.xi);
+  }
+}
+
+void BlockParticleBonds::load_state_union(const std::vector<StateArchive>& all, const std::string& p,
+                                          bool keep_sums) {
+  load_state(all.at(0), p);
+  cached_index_.assign(cached_index_.size(), bonded::ParticleStore::kNone);
+  std::fill(impulse_.begin(), impulse_.end(), Vec3::Zero());
+  std::fill(angular_impulse_.begin(), angular_impulse_.end(), Vec3::Zero());
+  stats_ = BlockBondStats{};
+  for (const StateArchive& a : all) {
+    const auto bonds = a.get<BlockBondRecord>(p + "bonds");
+    if (bonds.size() != bonds_.size()) throw std::runtime_error("block bond checkpoint: ranks disagree");
+    for (std::size_t k = 0; k < bonds.size(); ++k) bonds_[k].broken = bonds_[k].broken || bonds[k].broken != 0;
+    if (!keep_sums) continue;
+    const auto imp = a.get<Vec3>(p + "impulse"), ang = a.get<Vec3>(p + "angular_impulse");
+    for (std::size_t k = 0; k < imp.size() && k < impulse_.size(); ++k) {
+      impulse_[k] += imp[k];
+      angular_impulse_[k] += ang[k];
+    }
+    const auto st = a.get_value<BlockBondStats>(p + "stats");
+    stats_.broken += st.broken;
+    stats_.broken_tension += st.broken_tension;
+    stats_.broken_shear += st.broken_shear;
+  }
+}
+
+std::size_t HybridSystem::load_state_union(const std::vector<StateArchive>& all, const std::string& p) {
+  Impl& m = *impl_;
+  const StateArchive& a0 = all.at(0);
+  if (!world_) return load_state(a0, p);
+  // Everything but the rank-local parts as on rank 0, then those merged.
+  const std::size_t lost = load_state(a0, p);
+  const bool root = engine_.comm().rank() == 0;
+  m.contact.load_state_union(all, p + "contact/", root);
+  m.bonds.load_state_union(all, p + "bonds/", root);
+  return lost;
+}
+
 }  // namespace hs::bridge

@@ -3,6 +3,7 @@
 
 #include "common/error.h"
 #include "io/h5_handle.h"
+#include "io/run_file.h"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -258,6 +259,65 @@ std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t 
     out.push_back(std::move(s));
   }
   return out;
+}
+
+void copy_snapshots(const std::string& src, std::uint64_t count, RunFile& dst, int rank, int ranks) {
+  if (count == 0) return;
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const hid_t fid = H5Fopen(src.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (fid < 0) throw InputError("--restart", "cannot open the run file '" + src + "' (" + h5::error_stack_text() + ")");
+  Handle f(fid, H5Fclose);
+  for (std::uint64_t s = 0; s < count; ++s) {
+    char name[32];
+    std::snprintf(name, sizeof name, "/snapshots/%06llu", static_cast<unsigned long long>(s));
+    if (H5Lexists(f.get(), "/snapshots", H5P_DEFAULT) <= 0 || H5Lexists(f.get(), name, H5P_DEFAULT) <= 0)
+      throw InputError("--restart", "the run file '" + src + "' holds no snapshot " + name + ", the checkpoint counts " +
+                                        std::to_string(count));
+    Handle g(check_id(H5Gopen2(f.get(), name, H5P_DEFAULT), "H5Gopen2", name, src), H5Gclose);
+    const double time = get_attr<double>(g.get(), "time", H5T_NATIVE_DOUBLE, src);
+    const auto step = get_attr<std::uint64_t>(g.get(), "step", H5T_NATIVE_UINT64, src);
+    std::vector<std::string> fields;
+    check(H5Lvisit(g.get(), H5_INDEX_NAME, H5_ITER_INC, collect_dataset, &fields), "H5Lvisit", name, src);
+    dst.begin_snapshot(time, step);
+    for (const auto& fn : fields) {
+      const std::string obj = std::string(name) + "/" + fn;
+      Handle d(check_id(H5Dopen2(g.get(), fn.c_str(), H5P_DEFAULT), "H5Dopen2", obj, src), H5Dclose);
+      Handle space(check_id(H5Dget_space(d.get()), "H5Dget_space", obj, src), H5Sclose);
+      hsize_t dims[2] = {0, 1};
+      const int nd = H5Sget_simple_extent_ndims(space.get());
+      if (nd < 1 || nd > 2 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
+        throw InputError("--restart", "snapshot field " + obj + " in '" + src + "' is not 1-D or 2-D");
+      const std::uint64_t rows = dims[0];
+      const int width = nd == 2 ? static_cast<int>(dims[1]) : 1;
+      // This rank's equal share of the rows.
+      const std::uint64_t lo = rows * static_cast<std::uint64_t>(rank) / static_cast<std::uint64_t>(ranks);
+      const std::uint64_t hi = rows * static_cast<std::uint64_t>(rank + 1) / static_cast<std::uint64_t>(ranks);
+      const std::uint64_t n = hi - lo;
+      const hsize_t start[2] = {lo, 0}, cnt[2] = {n, static_cast<hsize_t>(width)};
+      check(H5Sselect_hyperslab(space.get(), H5S_SELECT_SET, start, nullptr, cnt, nullptr), "H5Sselect_hyperslab", obj,
+            src);
+      const hsize_t nval = n * static_cast<hsize_t>(width);
+      Handle mem(check_id(H5Screate_simple(1, &nval, nullptr), "H5Screate_simple", obj, src), H5Sclose);
+      Handle type(check_id(H5Dget_type(d.get()), "H5Dget_type", obj, src), H5Tclose);
+      std::string units;
+      if (H5Aexists(d.get(), "units") > 0) units = get_str_attr(d.get(), "units", src);
+      const FieldSlice slice{lo, rows};
+      if (H5Tget_class(type.get()) == H5T_FLOAT) {
+        std::vector<double> v(nval);
+        if (nval) check(H5Dread(d.get(), H5T_NATIVE_DOUBLE, mem.get(), space.get(), H5P_DEFAULT, v.data()), "H5Dread", obj, src);
+        dst.write_field(fn, v.data(), n, width, units, slice);
+      } else if (H5Tget_size(type.get()) <= 4) {
+        std::vector<std::int32_t> v(nval);
+        if (nval) check(H5Dread(d.get(), H5T_NATIVE_INT32, mem.get(), space.get(), H5P_DEFAULT, v.data()), "H5Dread", obj, src);
+        dst.write_field(fn, v.data(), n, width, units, slice);
+      } else {
+        std::vector<std::int64_t> v(nval);
+        if (nval) check(H5Dread(d.get(), H5T_NATIVE_INT64, mem.get(), space.get(), H5P_DEFAULT, v.data()), "H5Dread", obj, src);
+        dst.write_field(fn, v.data(), n, width, units, slice);
+      }
+    }
+    dst.end_snapshot();
+  }
 }
 
 }  // namespace hs::io

@@ -65,4 +65,12 @@ struct SeriesRows {
 /// hs::InputError("--restart", ...) when the file cannot be read or a series holds fewer rows.
 std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows);
 
+class RunFile;
+
+/// Copies the first `count` snapshots of the run file at `src` into `dst` (same fields, units,
+/// times and steps), one snapshot in memory at a time. Collective under MPI (every rank of
+/// `dst` calls it with its rank and the rank count; each writes an equal share of the rows).
+/// hs::InputError("--restart", ...) when `src` holds fewer snapshots.
+void copy_snapshots(const std::string& src, std::uint64_t count, RunFile& dst, int rank, int ranks);
+
 }  // namespace hs::io

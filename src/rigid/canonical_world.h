@@ -1,5 +1,5 @@
 // A btDiscreteDynamicsWorld whose constraint solve happens in an order fixed by the bodies and
-// joints themselves, not by the world's history (docs/engine.md, "Canonical Bullet order").
+// joints themselves, not by the world's history (docs/rigid.md, "Solve order").
 // Private to hs_rigid (includes Bullet).
 //
 // Why: Bullet solves contacts island by island, islands in the order of the union-find roots,

@@ -175,10 +175,10 @@ std::uint64_t checkpoint_step(const fs::path& ckpt) {
 /// `first` s) restarted from its last checkpoint into B (checkpoint every `later` s): the series of
 /// N and B and their last checkpoints are identical.
 void straight_vs_restart(const std::string& tag, double first, double later, const std::string& launcher,
-                         int ranks) {
+                         int ranks, const std::string& extra = "") {
   make_scene();
-  const std::string f = " --set time.checkpoint_interval=" + std::to_string(first);
-  const std::string l = " --set time.checkpoint_interval=" + std::to_string(later);
+  const std::string f = " --set time.checkpoint_interval=" + std::to_string(first) + extra;
+  const std::string l = " --set time.checkpoint_interval=" + std::to_string(later) + extra;
   const auto n = hybridsim("run ridge_run.json -o " + tag + "_n.h5" + l, launcher);
   ASSERT_EQ(n.rc, 0) << n.err;
   const auto a = hybridsim("run ridge_run.json -o " + tag + "_a.h5" + f, launcher);
@@ -202,6 +202,12 @@ void straight_vs_restart(const std::string& tag, double first, double later, con
   expect_same_series(work_dir() / (tag + "_n.h5"), work_dir() / (tag + "_a.h5"));  // checkpoints change nothing
   EXPECT_EQ(checkpoint_step(work_dir() / (tag + "_b.ckpt.h5")), checkpoint_step(work_dir() / (tag + "_n.ckpt.h5")));
   expect_same_checkpoint(work_dir() / (tag + "_n.ckpt.h5"), work_dir() / (tag + "_b.ckpt.h5"), ranks);
+  // Snapshots (when on): those before the checkpoint copied, the later ones written, all equal.
+  const auto pn = datasets(work_dir() / (tag + "_n.h5"), "/snapshots");
+  const auto pb = datasets(work_dir() / (tag + "_b.h5"), "/snapshots");
+  EXPECT_EQ(pn.size(), pb.size());
+  for (const auto& [name, bytes] : pn)
+    EXPECT_TRUE(pb.count(name) && pb.at(name) == bytes) << "/snapshots/" << name << " differs";
 }
 
 }  // namespace
@@ -211,11 +217,12 @@ void straight_vs_restart(const std::string& tag, double first, double later, con
 TEST(Restart, SerialContinuesBitIdentically) {
   straight_vs_restart("s1", 0.15, 0.35, "", 1);
   straight_vs_restart("s2", 0.21, 0.35, "", 1);
+  straight_vs_restart("s3", 0.15, 0.35, "", 1, " --set time.snapshot_interval=0.1");  // 0, 0.1, 0.2 s copied
 }
 
 // 2 ranks (mpirun -np 2): each rank saves and restores its own particles, ghosts and exchange lists.
 TEST(Restart, TwoRanksContinueBitIdentically) {
-  straight_vs_restart("m1", 0.15, 0.35, kMpirun, 2);
+  straight_vs_restart("m1", 0.15, 0.35, kMpirun, 2, " --set time.snapshot_interval=0.1");
 }
 
 // SIGTERM to a running `hybridsim run` (snapshots off): exit 143, every row up to the stop and a
