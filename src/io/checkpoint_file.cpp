@@ -52,9 +52,20 @@ T get_attr(hid_t loc, const char* name, hid_t type, const std::string& file) {
 std::string get_str_attr(hid_t loc, const char* name, const std::string& file) {
   Handle a(check_id(H5Aopen(loc, name, H5P_DEFAULT), "H5Aopen", name, file), H5Aclose);
   Handle ft(check_id(H5Aget_type(a.get()), "H5Aget_type", name, file), H5Tclose);
+  if (H5Tis_variable_str(ft.get()) > 0) {  // e.g. the run file's units
+    Handle mt(check_id(H5Tcopy(H5T_C_S1), "H5Tcopy", name, file), H5Tclose);
+    check(H5Tset_size(mt.get(), H5T_VARIABLE), "H5Tset_size", name, file);
+    check(H5Tset_cset(mt.get(), H5Tget_cset(ft.get())), "H5Tset_cset", name, file);
+    char* p = nullptr;
+    check(H5Aread(a.get(), mt.get(), &p), "H5Aread", name, file);
+    std::string s = p ? p : "";
+    H5free_memory(p);
+    return s;
+  }
   const std::size_t n = H5Tget_size(ft.get());
   Handle mt(check_id(H5Tcopy(H5T_C_S1), "H5Tcopy", name, file), H5Tclose);
   check(H5Tset_size(mt.get(), n), "H5Tset_size", name, file);
+  check(H5Tset_cset(mt.get(), H5Tget_cset(ft.get())), "H5Tset_cset", name, file);
   std::string s(n, '\0');
   check(H5Aread(a.get(), mt.get(), s.data()), "H5Aread", name, file);
   s.resize(std::strlen(s.c_str()));
