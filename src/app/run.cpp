@@ -226,13 +226,15 @@ int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const si
   const double t = sim.engine().time();
   std::fprintf(progress,
                "hybridsim: stopped by %s after step %llu of %llu (t = %s s of %g s, %.1f s wall). Series rows up "
-               "to t = %s s%s are in %s (closed), the checkpoint of that step in %s; no /analysis was written.\n"
-               "hybridsim: to continue the run: %s\n"
+               "to t = %s s%s are in %s (closed)%s; no /analysis was written.\n"
+               "hybridsim: %s%s\n"
                "hybridsim: exit code %d.\n",
                signal_name(stop), static_cast<unsigned long long>(last), static_cast<unsigned long long>(steps),
                sci(t, 6).c_str(), s.time.duration, wall, sci(t, 6).c_str(),
                sim.schedule().snapshot_every ? " and a snapshot of that step" : "", out_path.c_str(),
-               io::checkpoint_path(out_path).c_str(), resume.c_str(), stopped_exit_code(stop));
+               last < steps ? (", the checkpoint of that step in " + io::checkpoint_path(out_path)).c_str() : "",
+               last < steps ? "to continue the run: " : "the run had reached its last step",
+               last < steps ? resume.c_str() : "", stopped_exit_code(stop));
   return stopped_exit_code(stop);
 }
 
