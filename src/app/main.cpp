@@ -1,5 +1,5 @@
 // hybridsim command line.
-//   hybridsim scene.json [-o out.h5] [--set path=value]... [--flush-interval S] [--fsync]
+//   hybridsim scene.json [-o out.h5] [--set path=value]... [--flush-interval S] [--fsync] [--restart run.h5]
 //                                                             (same as `hybridsim run ...`)
 //   hybridsim check scene.json [--set path=value]...          validate, print derived figures
 //   hybridsim iso FILE.json                                   ISO 19906 estimate as JSON
@@ -62,6 +62,9 @@ int main(int argc, char** argv) {
                     "run keeps (docs/output.md)")
           ->check(CLI::PositiveNumber);
       a->add_flag("--fsync", opt.fsync, "fsync the output file after every flush (survives a machine crash)");
+      a->add_option("--restart", opt.restart,
+                    "continue the run in this run file (or its .ckpt.h5 checkpoint) from its last checkpoint; "
+                    "the output (default: that run file) holds the whole series (docs/output.md, \"Checkpoints\")");
     }
     a->add_option("--set", opt.overrides,
                   "override a scene field, e.g. --set ice.thickness=0.9 (value parsed as JSON, else a string); "

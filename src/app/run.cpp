@@ -4,6 +4,7 @@
 #include "app/run.h"
 
 #include "analysis/iso19906.h"
+#include "app/checkpoint.h"
 #include "app/output_path.h"
 #include "app/progress.h"
 #include "app/run_summary.h"
@@ -22,6 +23,7 @@
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 
 namespace hs::app {
 
@@ -206,20 +208,42 @@ void keep_last_good_and_close(const sim::Simulation& sim, sim::Recorders& rec, i
                sim.engine().time(), kept.c_str(), out_path.c_str());
 }
 
-/// A run stopped by SIGINT/SIGTERM after step `last`: says what was kept and returns 128 + signal.
+/// A word of a shell command, quoted when it needs it.
+std::string shell_word(const std::string& w) {
+  if (!w.empty() && w.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+=.,/:@%") ==
+                        std::string::npos)
+    return w;
+  std::string q = "'";
+  for (const char c : w) q += c == '\'' ? std::string("'\\''") : std::string(1, c);
+  return q + "'";
+}
+
+/// The command that continues this run from its checkpoint.
+std::string resume_command(const RunOptions& opt, const std::string& out_path, const par::Comm& comm) {
+  std::string c = comm.parallel() ? "mpirun -np " + std::to_string(comm.size()) + " hybridsim run" : "hybridsim run";
+  c += " " + shell_word(opt.scene_path);
+  for (const auto& o : opt.overrides) c += " --set " + shell_word(o);
+  c += " --restart " + shell_word(out_path);
+  return c;
+}
+
+/// A run stopped by SIGINT/SIGTERM after step `last`: says what was kept and how to continue,
+/// returns 128 + signal.
 int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const sim::Simulation& sim, double wall,
-                   const std::string& out_path, std::FILE* progress) {
+                   const std::string& out_path, const std::string& resume, std::FILE* progress) {
   const std::uint64_t steps = sim.schedule().total_steps;
   const double t = sim.engine().time();
   std::fprintf(progress,
                "hybridsim: stopped by %s after step %llu of %llu (t = %s s of %g s, %.1f s wall). Series rows up "
-               "to t = %s s%s are in %s (closed); no /analysis was written.\n"
-               "hybridsim: a stopped run cannot be resumed yet (checkpoint/restart is issue 14): run the scene "
-               "again for the full result. Exit code %d.\n",
+               "to t = %s s%s are in %s (closed)%s; no /analysis was written.\n"
+               "hybridsim: %s%s\n"
+               "hybridsim: exit code %d.\n",
                signal_name(stop), static_cast<unsigned long long>(last), static_cast<unsigned long long>(steps),
                sci(t, 6).c_str(), s.time.duration, wall, sci(t, 6).c_str(),
                sim.schedule().snapshot_every ? " and a snapshot of that step" : "", out_path.c_str(),
-               stopped_exit_code(stop));
+               last < steps ? (", the checkpoint of that step in " + io::checkpoint_path(out_path)).c_str() : "",
+               last < steps ? "to continue the run: " : "the run had reached its last step",
+               last < steps ? resume.c_str() : "", stopped_exit_code(stop));
   return stopped_exit_code(stop);
 }
 
@@ -230,8 +254,14 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   // 1. load: the scene file, --set overrides applied, validated
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   print_warnings(s.warnings, progress);
-  const std::string out_path = opt.output.empty() ? s.output : opt.output;
+  // --restart: the checkpoint and the rows before it are read before anything is created (the
+  // output may be the restarted file itself); the output defaults to that run file.
+  std::optional<Restart> restart;
+  if (!opt.restart.empty()) restart = read_restart(opt.restart, s, comm);
+  const std::string out_path =
+      !opt.output.empty() ? opt.output : restart ? io::strip_partial(restart->run_file) : s.output;
   check_run_output(out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
+  const std::string ckpt_path = io::checkpoint_path(out_path);
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
   sim::Simulation sim = sim::build_simulation(s, comm, {.ignore_memory_limit = opt.ignore_memory_limit});
@@ -248,22 +278,33 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   ProgressLine bar(progress, s.time.duration, steps);
   int stop = 0;           // the signal that stopped the run, 0 if none
   std::uint64_t last = 0;  // the last step completed
+  const std::uint64_t ckpt_every = sim.schedule().checkpoint_every;
   try {
     LoopPoll poll(comm, opt.flush_interval);
-    rec.write_initial(sim, file);  // row 0: the initial state
+    if (restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
+      last = apply_restart(*restart, sim, rec, file, progress);
+      std::fprintf(progress, "hybridsim: restarted from %s at step %llu (t = %s s)\n",
+                   restart->checkpoint_file.c_str(), static_cast<unsigned long long>(last),
+                   sci(sim.engine().time(), 6).c_str());
+      restart.reset();
+    } else {
+      rec.write_initial(sim, file);  // row 0: the initial state
+    }
     file.flush();
-    for (std::uint64_t k = 1; k <= steps; ++k) {
+    for (std::uint64_t k = last + 1; k <= steps; ++k) {
       sim.step();                    // particles one DEM step; blocks every rigid step
       rec.after_step(k, sim, file);  // sums and peaks; rows and snapshots when due
       bar.update(k, sim.engine());   // progress line
       last = k;
       const PollResult p = poll.after_step(k, steps);
-      if (p.stop) {  // finish here: the rows (and snapshot) of this step, then close below
+      if (p.stop) {  // finish here: a checkpoint, the rows (and snapshot) of this step, then close below
         stop = p.stop;
+        if (k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm);  // before write_stop's extra rows
         rec.write_stop(k, sim, file);
         break;
       }
-      if (p.flush) file.flush();
+      if (ckpt_every && k % ckpt_every == 0 && k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm);
+      else if (p.flush) file.flush();
     }
   } catch (const SimulationError&) {
     bar.end();
@@ -280,7 +321,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   bar.end();
   file.close();
   const double wall = seconds_since(t0);
-  if (stop) return report_stopped(stop, last, s, sim, wall, out_path, progress);
+  if (stop) return report_stopped(stop, last, s, sim, wall, out_path, resume_command(opt, out_path, comm), progress);
 
   // 4. report: pieces, ISO beside the run, the hybrid outcome -> /analysis and the summary
   const sim::RunFigures fig = rec.figures();

@@ -23,6 +23,9 @@ struct RunOptions {
   double flush_interval = 60.0;
   bool fsync = false;  ///< --fsync: fsync(2) after every flush (serial; MPI-IO syncs itself)
   bool ignore_memory_limit = false;    ///< --ignore-memory-limit: build even past the memory estimate
+  /// --restart: continue the run of this run file (or of its checkpoint file) from its last
+  /// checkpoint (docs/output.md, "Checkpoints"); empty = start from t = 0.
+  std::string restart;
 };
 
 /// Exit code of a run stopped by SIGINT/SIGTERM: 128 + the signal (130, 143).

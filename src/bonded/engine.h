@@ -32,6 +32,10 @@
 #include <string>
 #include <vector>
 
+namespace hs {
+class StateArchive;
+}
+
 namespace hs::bonded {
 
 enum class BondKind : std::uint8_t { Lattice = 0, Freeze = 1 };
@@ -321,6 +325,24 @@ class Engine {
 
   /// Called after every step (for probes/output); optional.
   std::function<void(const Engine&)> on_step;
+
+  // ---- checkpoint (engine_state.cpp; docs/output.md, "Checkpoints") ----
+  /// Saves this rank's whole dynamic state under prefix + "...": every particle array (owned and
+  /// ghosts, in store order), bonds with their reference states, contact pairs with their
+  /// tangential springs (the neighbour list itself), wall and mesh friction history, the positions
+  /// at the last neighbour rebuild, the forces of the last step, time, step, counters, and under
+  /// MPI the cuts, ghost lists and balance schedule.
+  void save_state(StateArchive& a, const std::string& prefix) const;
+  /// Restores what save_state wrote into an engine built from the same scene (same walls, meshes
+  /// and definitions) and, under MPI, distributed over the same number of ranks. The next step
+  /// then computes exactly what the saved engine's next step would have.
+  void load_state(const StateArchive& a, const std::string& prefix);
+  /// Restores a checkpoint written at another rank count (`all`: every saved rank's archive):
+  /// the union of the saved ranks' owned particles, bonds and friction history becomes one
+  /// system, which this engine then spreads over its own ranks as distribute() does (collective;
+  /// every rank passes the same `all`). Forces are evaluated afresh at the first step, the
+  /// neighbour lists rebuilt: the same physics, summed in another order (round-off only).
+  void load_state_union(const std::vector<StateArchive>& all, const std::string& prefix);
 
   /// Forces for the current state without advancing anything: tangential springs are
   /// not incremented (a re-evaluation at the same state must not move them).

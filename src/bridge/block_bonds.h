@@ -144,6 +144,13 @@ class BlockParticleBonds final : public bonded::ForceSource {
   /// Elastic energy of the intact bonds of owned particles, J (this rank).
   double elastic_energy(const bonded::ParticleStore& ps, const bonded::EngineDef& def) const;
 
+  /// Checkpoint (hybrid_state.cpp): block table, bonds, index cache, pending impulses, counters.
+  void save_state(StateArchive& a, const std::string& prefix) const;
+  void load_state(const StateArchive& a, const std::string& prefix);
+  /// From every saved rank (another rank count): the replicated list from the first with the
+  /// broken flags of all, impulses and counters summed (kept only where `keep_sums`, else zero).
+  void load_state_union(const std::vector<StateArchive>& all, const std::string& prefix, bool keep_sums);
+
  private:
   std::uint32_t lookup(const bonded::ParticleStore& ps, std::size_t n_owned, std::size_t k);
   std::vector<BlockBody> blocks_;

@@ -112,6 +112,13 @@ class BlockContact final : public bonded::ForceSource {
   void pack_history(const std::unordered_map<GlobalId, int>& leaving, std::vector<par::Bytes>& out) override;
   void unpack_history(const char* data, std::size_t size) override;
 
+  /// Checkpoint (hybrid_state.cpp): blocks, loads and accumulated impulses, tangential springs.
+  void save_state(StateArchive& a, const std::string& prefix) const;
+  void load_state(const StateArchive& a, const std::string& prefix);
+  /// From every saved rank (another rank count): blocks from the first, loads and impulses summed
+  /// (kept only where `keep_sums`, else zero), tangential springs united.
+  void load_state_union(const std::vector<StateArchive>& all, const std::string& prefix, bool keep_sums);
+
  private:
   struct Key {
     GlobalId gid;

@@ -25,6 +25,10 @@
 #include <string>
 #include <vector>
 
+namespace hs {
+class StateArchive;
+}
+
 namespace hs::bridge {
 
 enum class ConversionMode { Hybrid, AllAtStart, Never };
@@ -175,6 +179,22 @@ class HybridSystem {
   /// the policy calls it, tests may too. Returns the converter's report.
   ConversionReport convert(rigid::BlockId id);
   std::uint64_t steps_per_rigid_step() const { return report_.steps_per_rigid_step; }
+
+  // ---- checkpoint (hybrid_state.cpp; docs/output.md, "Checkpoints") ----
+  /// Saves the rigid world, the particle-block contacts (loads, pending impulses, tangential
+  /// springs of this rank's particles), the block-particle bonds (replicated list with reference
+  /// states and broken flags, this rank's pending impulses), the blocks' kinematic reference,
+  /// the filtered utilisations, the refused blocks, the DEM steps since the last rigid step and
+  /// the report's counters.
+  void save_state(StateArchive& a, const std::string& prefix) const;
+  /// Restores into a system built from the same scene (the engine is restored separately).
+  /// Returns the contact points the rigid world could not place (rigid::RigidWorld::load_state).
+  std::size_t load_state(const StateArchive& a, const std::string& prefix);
+  /// The same from a checkpoint written at another rank count (`all`: every saved rank's
+  /// archive; call before Engine::load_state_union, collective): the replicated parts from rank
+  /// 0, the per-rank parts merged (tangential springs united, impulses accumulated since the last
+  /// rigid step summed onto rank 0, broken flags of the block-particle bonds united).
+  std::size_t load_state_union(const std::vector<StateArchive>& all, const std::string& prefix);
 
  private:
   struct Impl;

@@ -729,6 +729,13 @@ std::uint64_t RunFile::series_rows(int series_id) const {
   return impl().series_at(series_id, "series_rows").rows_total;
 }
 
+int RunFile::series_count() const { return static_cast<int>(impl().series.size()); }
+const std::string& RunFile::series_path(int series_id) const { return impl().series_at(series_id, "series_path").path; }
+int RunFile::series_width(int series_id) const { return impl().series_at(series_id, "series_width").width; }
+bool RunFile::series_is_integer(int series_id) const {
+  return impl().series_at(series_id, "series_is_integer").type == Elem::i64;
+}
+
 void RunFile::begin_snapshot(double time, std::uint64_t step) {
   Impl& m = impl();
   m.require_open("begin_snapshot");

@@ -129,6 +129,11 @@ class RunFile {
   void append(int series_id, const std::int64_t* row);
   /// Rows appended so far (flushed or not).
   std::uint64_t series_rows(int series_id) const;
+  /// Series declared so far (ids 0 .. series_count() - 1), each one's path, width and type.
+  int series_count() const;
+  const std::string& series_path(int series_id) const;
+  int series_width(int series_id) const;
+  bool series_is_integer(int series_id) const;
 
   // ---- particle snapshots ----
   /// Starts snapshot number snapshot_count(): /snapshots/NNNNNN.

@@ -51,6 +51,8 @@ class Decomposition {
   std::array<int, 3> coords(int rank) const;
   /// Cut positions along an axis: dims[a] + 1 values, the outer two infinite.
   const std::vector<double>& cuts(int axis) const { return cuts_[axis]; }
+  /// Replaces the cuts along `axis` (a checkpoint restore; same dims).
+  void set_cuts(int axis, std::vector<double> c) { cuts_[axis] = std::move(c); }
 
   /// Uniform cuts over [lo, hi].
   void set_uniform(const Vec3& lo, const Vec3& hi);

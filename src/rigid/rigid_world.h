@@ -20,7 +20,12 @@
 #include <array>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
+
+namespace hs {
+class StateArchive;
+}
 
 namespace hs::rigid {
 
@@ -238,6 +243,21 @@ class RigidWorld {
   /// Freeze joints broken since the world was made.
   std::size_t broken_joint_count() const;
   std::size_t joint_count() const;  ///< intact joints
+
+  // ---- checkpoint (docs/output.md, "Checkpoints"; at the end of rigid_world.cpp) ----
+  /// Saves everything a later sub-step reads, under keys prefix + "...": per block slot its
+  /// liveness, generation, Bullet transform, interpolation transform, velocities, activation
+  /// state, deactivation time, hit fraction, friction and pending external loads; per joint slot
+  /// its liveness, broken flag and last load; the kinematic meshes' poses and loads; every contact
+  /// manifold (keyed by its two bodies) with every field of every contact point; time and steps.
+  void save_state(StateArchive& a, const std::string& prefix) const;
+  /// Restores a world built exactly as the saved one was built (same blocks, joints and meshes
+  /// added in the same order; blocks removed since are removed here): bodies and joints take the
+  /// saved state, one collision detection pass creates the pairs and manifolds, then each
+  /// manifold's points are replaced by the saved ones (manifolds not saved are emptied). Returns
+  /// the number of saved contact points whose manifold did not reappear (0 in every case
+  /// measured; each such point would be a deviation from the original run).
+  std::size_t load_state(const StateArchive& a, const std::string& prefix);
 
  private:
   struct Impl;

@@ -23,7 +23,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
   static const std::map<std::string, std::vector<std::string>> k = {
       {"", {"name", "description", "output", "time", "material", "bonds", "water", "gravity", "ice", "walls",
             "structure", "analysis", "stability", "parallel", "blocks"}},
-      {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval"}},
+      {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval", "checkpoint_interval"}},
       {"/material",
        {"density", "youngs_modulus", "poisson_ratio", "particle_diameter", "restitution", "friction",
         "contact_model", "stiffness"}},
@@ -137,6 +137,9 @@ void read_time(const JsonObject& root, Scene& s) {
                                "time between series rows, e.g. 0.01");
   t.snapshot_interval = o.number("snapshot_interval", t.snapshot_interval, Range::non_negative(), "s",
                                  "time between particle snapshots, or 0 for none");
+  t.checkpoint_interval = o.number("checkpoint_interval", t.checkpoint_interval, Range::non_negative(), "s",
+                                   "simulated time between checkpoints, or 0 for none (a SIGINT/SIGTERM stop always "
+                                   "writes one)");
   if (t.dt > 0) check_step_count(t, t.dt);
   if (t.output_interval > t.duration)
     s.warnings.push_back("/time/output_interval: " + json_fmt(t.output_interval) + " s is longer than the duration " +

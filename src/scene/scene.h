@@ -30,6 +30,9 @@ struct TimeDef {
   double dt_alpha = 0.1;           ///< alpha in dt = alpha D sqrt(rho/E)
   double output_interval = 0.01;   ///< s between /series rows
   double snapshot_interval = 0.0;  ///< s between particle snapshots; 0 = none
+  /// Simulated seconds between checkpoints (<output>.ckpt.h5, docs/output.md); 0 = none (a run
+  /// stopped by SIGINT/SIGTERM writes one anyway).
+  double checkpoint_interval = 0.0;
 };
 
 /// Most DEM steps a run may take (time.duration / dt). Beyond it even a thousand-particle sheet

@@ -15,6 +15,9 @@
 #include <memory>
 #include <vector>
 
+namespace hs {
+class StateArchive;
+}
 namespace hs::io {
 class RunFile;
 }
@@ -51,6 +54,10 @@ class Recorder {
   virtual void write(Simulation& sim, io::RunFile& file) = 0;
   /// Adds what this recorder saw to the run's figures (default: nothing).
   virtual void figures(RunFigures& f) const {}
+  /// Checkpoint: this recorder's sums, counts and peaks under prefix + "..." (default: none;
+  /// a recorder that keeps anything between rows must save it, or a restarted run's rows differ).
+  virtual void save(StateArchive& a, const std::string& prefix) const {}
+  virtual void load(const StateArchive& a, const std::string& prefix) {}
 };
 
 /// The run's recorders in their fixed order.
@@ -75,6 +82,10 @@ class Recorders {
   /// Time [s] of the kept last good state.
   double last_good_time() const;
   RunFigures figures() const;
+  /// Checkpoint: every recorder's state (collective-free; each rank its own, all alike).
+  void save_state(StateArchive& a) const;
+  /// Restores the recorders after a restart; the restored simulation becomes the last good state.
+  void load_state(const StateArchive& a, const Simulation& sim);
 
  private:
   class LastGood;

@@ -3,6 +3,7 @@
 
 #include "analysis/pile_height.h"
 #include "common/ice_formulas.h"
+#include "common/state_archive.h"
 #include "json/reader.h"
 #include "io/run_file.h"
 #include "parallel/comm.h"
@@ -10,6 +11,7 @@
 #include <algorithm>
 #include <cmath>
 #include <iterator>
+#include <stdexcept>
 #include <string>
 
 namespace hs::sim {
@@ -43,6 +45,8 @@ class TimeRecorder : public Recorder {
     ++rows_;
   }
   void figures(RunFigures& fig) const override { fig.rows = rows_; }
+  void save(StateArchive& a, const std::string& p) const override { a.put_value(p + "rows", rows_); }
+  void load(const StateArchive& a, const std::string& p) override { rows_ = a.get_value<std::uint64_t>(p + "rows"); }
 
  private:
   int id_time_ = -1, id_step_ = -1;
@@ -90,6 +94,18 @@ class WallsRecorder : public Recorder {
   void figures(RunFigures& fig) const override {
     fig.wall_peak = peak_;
     fig.wall_peak_time = peak_time_;
+  }
+  void save(StateArchive& a, const std::string& p) const override {
+    a.put(p + "sum", sum_);
+    a.put(p + "peak", peak_);
+    a.put(p + "peak_time", peak_time_);
+    a.put_value(p + "n", n_);
+  }
+  void load(const StateArchive& a, const std::string& p) override {
+    a.get_into(p + "sum", sum_);
+    a.get_into(p + "peak", peak_);
+    a.get_into(p + "peak_time", peak_time_);
+    n_ = a.get_value<std::uint64_t>(p + "n");
   }
 
  private:
@@ -164,6 +180,33 @@ class StructureLoadRecorder : public Recorder {
     fig.peak_step_time = peak_step_time_;
     fig.mean_force = steps_ ? Vec3(total_ / static_cast<double>(steps_)) : Vec3::Zero();
   }
+  void save(StateArchive& a, const std::string& p) const override {
+    a.put_value(p + "force", force_);
+    a.put_value(p + "moment", moment_);
+    a.put(p + "part_force", pf_);
+    a.put(p + "part_moment", pm_);
+    a.put_value(p + "total", total_);
+    const std::uint64_t c[2] = {n_, steps_};
+    a.put(p + "counts", std::vector<std::uint64_t>(c, c + 2));
+    const double d[4] = {peak_h_, peak_h_time_, peak_step_, peak_step_time_};
+    a.put(p + "peaks", std::vector<double>(d, d + 4));
+  }
+  void load(const StateArchive& a, const std::string& p) override {
+    force_ = a.get_value<Mean3>(p + "force");
+    moment_ = a.get_value<Mean3>(p + "moment");
+    a.get_into(p + "part_force", pf_);
+    a.get_into(p + "part_moment", pm_);
+    total_ = a.get_value<Vec3>(p + "total");
+    const auto c = a.get<std::uint64_t>(p + "counts");
+    const auto d = a.get<double>(p + "peaks");
+    if (c.size() != 2 || d.size() != 4) throw std::runtime_error("checkpoint: structure load recorder of another version");
+    n_ = c[0];
+    steps_ = c[1];
+    peak_h_ = d[0];
+    peak_h_time_ = d[1];
+    peak_step_ = d[2];
+    peak_step_time_ = d[3];
+  }
 
  private:
   std::vector<std::string> parts_;
@@ -178,6 +221,24 @@ class StructureLoadRecorder : public Recorder {
 };
 
 // ---- /series/pile_height, /series/structure_position
+/// The largest value of a series and when it was reached; kept across a restart.
+struct RunningMax {
+  double value = 0.0, time = 0.0;
+  void update(double v, double t) {
+    if (v > value) {
+      value = v;
+      time = t;
+    }
+  }
+  void save(StateArchive& a, const std::string& key) const { a.put(key, std::vector<double>{value, time}); }
+  void load(const StateArchive& a, const std::string& key) {
+    const auto d = a.get<double>(key);
+    if (d.size() != 2) throw std::runtime_error("checkpoint: " + key + " of another version");
+    value = d[0];
+    time = d[1];
+  }
+};
+
 class PileHeightRecorder : public Recorder {
  public:
   PileHeightRecorder(const analysis::PileProbe& probe, const par::Comm& comm) : probe_(probe), comm_(comm) {}
@@ -193,21 +254,20 @@ class PileHeightRecorder : public Recorder {
     const double ph = comm_.max(analysis::pile_height(probe_, ps.x.data(), ps.radius.data(), ps.owned()));
     f.append(id_pile_, &ph);
     f.append(id_pos_, probe_.axis_point.data());
-    if (ph > max_) {
-      max_ = ph;
-      max_time_ = sim.engine().time();
-    }
+    max_.update(ph, sim.engine().time());
   }
   void figures(RunFigures& fig) const override {
-    fig.max_pile = max_;
-    fig.max_pile_time = max_time_;
+    fig.max_pile = max_.value;
+    fig.max_pile_time = max_.time;
   }
+  void save(StateArchive& a, const std::string& p) const override { max_.save(a, p + "max"); }
+  void load(const StateArchive& a, const std::string& p) override { max_.load(a, p + "max"); }
 
  private:
   analysis::PileProbe probe_;
   const par::Comm& comm_;
   int id_pile_ = -1, id_pos_ = -1;
-  double max_ = 0.0, max_time_ = 0.0;
+  RunningMax max_;
 };
 
 // ---- /series/pile_height_mean: the ISO-consistent pile height (pier only)
@@ -228,22 +288,21 @@ class PileMeanRecorder : public Recorder {
     comm_.max(crest.data(), static_cast<int>(crest.size()));
     const double h = analysis::mean_crest(crest);
     f.append(id_, &h);
-    if (h > max_) {
-      max_ = h;
-      max_time_ = sim.engine().time();
-    }
+    max_.update(h, sim.engine().time());
   }
   void figures(RunFigures& fig) const override {
     fig.has_pile_mean = true;
-    fig.max_pile_mean = max_;
-    fig.max_pile_mean_time = max_time_;
+    fig.max_pile_mean = max_.value;
+    fig.max_pile_mean_time = max_.time;
   }
+  void save(StateArchive& a, const std::string& p) const override { max_.save(a, p + "max"); }
+  void load(const StateArchive& a, const std::string& p) override { max_.load(a, p + "max"); }
 
  private:
   analysis::PileBand band_;
   const par::Comm& comm_;
   int id_ = -1;
-  double max_ = 0.0, max_time_ = 0.0;
+  RunningMax max_;
 };
 
 // ---- /series/blocks/...: the rigid blocks
@@ -279,6 +338,14 @@ class BlocksRecorder : public Recorder {
     f.append(id_conv_, &nconv);
     f.append(id_joints_, &nj);
     n_ = 0;
+  }
+  void save(StateArchive& a, const std::string& p) const override {
+    a.put_value(p + "force", force_);
+    a.put_value(p + "n", n_);
+  }
+  void load(const StateArchive& a, const std::string& p) override {
+    force_ = a.get_value<Mean3>(p + "force");
+    n_ = a.get_value<std::uint64_t>(p + "n");
   }
 
  private:
@@ -374,6 +441,8 @@ class SnapshotRecorder : public Recorder {
     ++count_;
   }
   void figures(RunFigures& fig) const override { fig.snapshots = count_; }
+  void save(StateArchive& a, const std::string& p) const override { a.put_value(p + "count", count_); }
+  void load(const StateArchive& a, const std::string& p) override { count_ = a.get_value<std::uint64_t>(p + "count"); }
 
  private:
   const par::Comm& comm_;
@@ -506,6 +575,18 @@ std::uint64_t Recorders::write_last_good(io::RunFile& file) {
 }
 
 double Recorders::last_good_time() const { return last_good_->time(); }
+
+void Recorders::save_state(StateArchive& a) const {
+  a.put_value("recorders/count", static_cast<std::uint64_t>(list_.size()));
+  for (std::size_t k = 0; k < list_.size(); ++k) list_[k]->save(a, "recorders/" + std::to_string(k) + "/");
+}
+
+void Recorders::load_state(const StateArchive& a, const Simulation& sim) {
+  if (a.get_value<std::uint64_t>("recorders/count") != list_.size())
+    throw std::runtime_error("checkpoint: the run has another set of output series");
+  for (std::size_t k = 0; k < list_.size(); ++k) list_[k]->load(a, "recorders/" + std::to_string(k) + "/");
+  last_good_->keep(sim);
+}
 
 RunFigures Recorders::figures() const {
   RunFigures f;

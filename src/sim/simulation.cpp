@@ -16,6 +16,9 @@ Schedule schedule(const scene::TimeDef& t, double dt) {
   if (t.snapshot_interval > 0)
     sc.snapshot_every =
         std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(t.snapshot_interval / dt)));
+  if (t.checkpoint_interval > 0)
+    sc.checkpoint_every =
+        std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(t.checkpoint_interval / dt)));
   return sc;
 }
 

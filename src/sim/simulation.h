@@ -31,6 +31,7 @@ struct Schedule {
   std::uint64_t total_steps = 0;
   std::uint64_t output_every = 1;    ///< steps between series rows
   std::uint64_t snapshot_every = 0;  ///< 0 = no snapshots
+  std::uint64_t checkpoint_every = 0;  ///< steps between checkpoints; 0 = none
 };
 Schedule schedule(const scene::TimeDef& t, double dt);
 

@@ -164,7 +164,9 @@ TEST(Stop, SigtermFinishesTheStepWritesEveryRowAndExits143) {
   const std::string err = c.err();
   ASSERT_EQ(rc, 143) << err;
   EXPECT_NE(err.find("stopped by SIGTERM"), std::string::npos) << err;
-  EXPECT_NE(err.find("issue 14"), std::string::npos) << "says that restart is not available yet\n" << err;
+  EXPECT_NE(err.find("to continue the run: hybridsim run long.json --restart term.h5"), std::string::npos)
+      << "prints the command that resumes the run\n" << err;
+  EXPECT_TRUE(fs::exists(work_dir() / "term.ckpt.h5")) << "and writes the checkpoint it needs";
   const long long k = number_after(err, "after step");
   ASSERT_GT(k, 0) << err;
   expect_contiguous_rows(work_dir() / "term.h5", k);

@@ -1,0 +1,198 @@
+#include "app/checkpoint.h"
+
+#include "common/error.h"
+#include "io/run_file.h"
+#include "parallel/comm.h"
+#include "scene/scene.h"
+#include "sim/recorder.h"
+#include "sim/simulation.h"
+
+#include <cstring>
+#include <filesystem>
+#include <regex>
+
+namespace hs::app {
+
+namespace {
+
+namespace fs = std::filesystem;
+
+nlohmann::json identity_json(const nlohmann::json& j) {
+  nlohmann::json c = j;
+  if (c.is_object()) {
+    c.erase("output");
+    if (c.contains("time") && c["time"].is_object()) c["time"].erase("checkpoint_interval");
+  }
+  return c;
+}
+
+/// The first JSON pointer at which a and b differ ("" when equal).
+std::string first_difference(const nlohmann::json& a, const nlohmann::json& b, const std::string& at = "") {
+  if (a.type() != b.type()) return at.empty() ? "/" : at;
+  if (a.is_object()) {
+    for (auto it = a.begin(); it != a.end(); ++it) {
+      if (!b.contains(it.key())) return at + "/" + it.key();
+      const std::string d = first_difference(it.value(), b[it.key()], at + "/" + it.key());
+      if (!d.empty()) return d;
+    }
+    for (auto it = b.begin(); it != b.end(); ++it)
+      if (!a.contains(it.key())) return at + "/" + it.key();
+    return "";
+  }
+  if (a.is_array()) {
+    for (std::size_t k = 0; k < std::min(a.size(), b.size()); ++k) {
+      const std::string d = first_difference(a[k], b[k], at + "/" + std::to_string(k));
+      if (!d.empty()) return d;
+    }
+    return a.size() == b.size() ? "" : at + "/" + std::to_string(std::min(a.size(), b.size()));
+  }
+  return a == b ? "" : (at.empty() ? "/" : at);
+}
+
+}  // namespace
+
+std::string scene_identity(const scene::Scene& s, std::string* canonical_text) {
+  const std::string text = identity_json(s.json).dump();
+  if (canonical_text) *canonical_text = text;
+  return io::text_hash(text);
+}
+
+Restart read_restart(const std::string& arg, const scene::Scene& s, const par::Comm& comm) {
+  Restart r;
+  const fs::path p(arg);
+  static const std::regex ckpt(R"((.*)\.ckpt)");
+  std::smatch m;
+  const std::string stem = p.stem().string();
+  if (std::regex_match(stem, m, ckpt)) {  // the checkpoint file itself: its run file beside it
+    r.checkpoint_file = arg;
+    fs::path run = p;
+    run.replace_filename(m[1].str() + p.extension().string());
+    r.run_file = run.string();
+  } else {
+    r.run_file = arg;
+    r.checkpoint_file = io::checkpoint_path(arg);
+  }
+  if (!fs::exists(r.run_file) && r.run_file != arg)
+    throw InputError("--restart", "no run file '" + r.run_file + "' beside the checkpoint '" + arg + "'");
+  if (!fs::exists(r.checkpoint_file))
+    throw InputError("--restart", "'" + arg + "' has no checkpoint: '" + r.checkpoint_file +
+                                      "' does not exist (the run wrote none: time.checkpoint_interval was 0 and it was "
+                                      "not stopped by SIGINT/SIGTERM)");
+  r.meta = io::read_checkpoint_meta(r.checkpoint_file);
+  std::string mine;
+  const std::string hash = scene_identity(s, &mine);
+  if (hash != r.meta.scene_hash) {
+    std::string where;
+    try {
+      const nlohmann::json saved = identity_json(nlohmann::json::parse(r.meta.scene_text));
+      where = first_difference(saved, nlohmann::json::parse(mine));
+    } catch (const std::exception&) {
+    }
+    throw InputError("--restart", "the scene differs from the one the checkpoint '" + r.checkpoint_file +
+                                      "' was written for (scene hash " + hash + " vs " + r.meta.scene_hash + ")" +
+                                      (where.empty() ? std::string() : ", first at " + where) +
+                                      "; restart with the same scene file and --set options");
+  }
+  if (r.meta.ranks == comm.size())
+    r.state = io::read_checkpoint_rank(r.checkpoint_file, comm.rank());
+  else
+    for (int k = 0; k < r.meta.ranks; ++k) r.all.push_back(io::read_checkpoint_rank(r.checkpoint_file, k));
+  r.series = io::read_series_rows(r.run_file, r.meta.series_rows);
+  return r;
+}
+
+std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& rec, io::RunFile& file,
+                            std::FILE* progress) {
+  try {
+    std::size_t lost = 0;
+    if (r.all.empty()) {  // same rank count: each rank its own state, exactly
+      sim.engine().load_state(r.state, "engine/");
+      lost = sim.hybrid().load_state(r.state, "hybrid/");
+      rec.load_state(r.state, sim);
+    } else {  // another rank count: the union of the saved ranks, spread over these ranks
+      std::fprintf(progress,
+                   "hybridsim: the checkpoint was written by %d rank(s), this run has %d: the particles are "
+                   "redistributed (the same physics; sums in another order, round-off differences)\n",
+                   r.meta.ranks, sim.engine().comm().size());
+      lost = sim.hybrid().load_state_union(r.all, "hybrid/");
+      sim.engine().load_state_union(r.all, "engine/");
+      rec.load_state(r.all.front(), sim);
+    }
+    if (lost)
+      std::fprintf(progress, "hybridsim: warning: %zu saved rigid contact points found no contact manifold after the "
+                             "restore; the continuation may differ from the original run in the last bits\n", lost);
+  } catch (const InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    throw InputError("--restart", "the checkpoint '" + r.checkpoint_file + "' does not fit the scene as built: " +
+                                      e.what());
+  }
+  // The snapshots written up to the checkpoint (a stop's extra snapshot is not counted), then the
+  // rows up to it, series by series in the order the recorders declared them.
+  io::copy_snapshots(r.run_file, r.meta.snapshots, file, sim.engine().comm().rank(), sim.engine().comm().size());
+  for (int id = 0; id < file.series_count(); ++id) {
+    const std::string& path = file.series_path(id);
+    const io::SeriesRows* src = nullptr;
+    for (const auto& s : r.series)
+      if (s.path == path) src = &s;
+    if (!src || src->width != file.series_width(id) || src->integer != file.series_is_integer(id))
+      throw InputError("--restart", "the run file '" + r.run_file + "' has no series " + path +
+                                        " of the kind this run writes (is it the run file of this checkpoint?)");
+    for (std::uint64_t row = 0; row < src->rows; ++row) {
+      const std::size_t o = row * static_cast<std::size_t>(src->width);
+      if (src->integer)
+        file.append(id, src->i64.data() + o);
+      else
+        file.append(id, src->f64.data() + o);
+    }
+  }
+  file.flush();
+  r.series.clear();
+  r.state.entries.clear();
+  r.all.clear();
+  return sim.engine().step_count();
+}
+
+void write_checkpoint(const std::string& ckpt_path, const scene::Scene& s, const sim::Simulation& sim,
+                      const sim::Recorders& rec, io::RunFile& file, const par::Comm& comm) {
+  file.flush();  // the run file holds every row the checkpoint counts
+  StateArchive a;
+  sim.engine().save_state(a, "engine/");
+  sim.hybrid().save_state(a, "hybrid/");
+  rec.save_state(a);
+  std::vector<StateArchive> all;
+  if (comm.parallel()) {
+    const std::string mine = a.serialize();
+    par::Bytes b(sizeof(std::uint64_t) + mine.size());
+    const std::uint64_t n = mine.size();
+    std::memcpy(b.data(), &n, sizeof n);
+    std::memcpy(b.data() + sizeof n, mine.data(), mine.size());
+    const par::Bytes g = comm.gather(b);
+    if (comm.rank() != 0) return;
+    std::size_t o = 0;
+    while (o + sizeof(std::uint64_t) <= g.size()) {
+      std::uint64_t len;
+      std::memcpy(&len, g.data() + o, sizeof len);
+      o += sizeof len;
+      StateArchive r;
+      r.deserialize(g.data() + o, len);
+      o += len;
+      all.push_back(std::move(r));
+    }
+  } else {
+    all.push_back(std::move(a));
+  }
+  io::CheckpointMeta meta;
+  meta.step = sim.engine().step_count();
+  meta.time = sim.engine().time();
+  meta.ranks = comm.size();
+  meta.series_rows = file.series_count() ? file.series_rows(0) : 0;
+  meta.snapshots = file.snapshot_count();
+  meta.scene_hash = scene_identity(s, nullptr);
+  meta.scene_text = s.json.dump();
+  meta.program_version = HYBRIDSIM_VERSION;
+  meta.run_file = file.path();
+  io::write_checkpoint(ckpt_path, meta, all);
+}
+
+}  // namespace hs::app

@@ -1,0 +1,95 @@
+// A btDiscreteDynamicsWorld whose constraint solve happens in an order fixed by the bodies and
+// joints themselves, not by the world's history (docs/rigid.md, "Solve order").
+// Private to hs_rigid (includes Bullet).
+//
+// Why: Bullet solves contacts island by island, islands in the order of the union-find roots,
+// manifolds in the dispatcher's array order (creation and swap-removal history) sorted by an
+// unstable quickSort on island id, and joints in the world's constraint array (swap-removal
+// history). A world rebuilt from a checkpoint holds the same bodies, joints and contact points
+// but not that history, so it would solve in another order and drift from the original in the
+// last bits. Here every step solves all contacts and joints as one group (what Bullet itself
+// does with split islands off): manifolds sorted by their two bodies' keys, joints in creation
+// (slot) order. Islands are still built, only to put bodies to sleep and wake them (Bullet's
+// buildIslands); the contacts and joints of sleeping islands are left out as Bullet leaves them.
+// Islands do not interact, so one group gives each island the same physics as solving it
+// alone; only the order of the rows inside an island changed (results moved once, in the last
+// bits, when this was introduced).
+#pragma once
+
+#include <BulletCollision/CollisionDispatch/btSimulationIslandManager.h>
+#include <btBulletDynamicsCommon.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <vector>
+
+namespace hs::rigid::detail {
+
+/// User index 2 of a kinematic mesh body; blocks keep Bullet's default (-1).
+constexpr int kMeshTag = 1;
+
+/// A body's stable key: blocks by slot index, kinematic meshes after every block.
+inline std::uint64_t body_key(const btCollisionObject* o) {
+  const auto idx = static_cast<std::uint64_t>(static_cast<std::uint32_t>(o->getUserIndex()));
+  return o->getUserIndex2() == kMeshTag ? (std::uint64_t{1} << 32) + idx : idx;
+}
+
+/// The dispatcher's manifolds sorted by (key of body 0, key of body 1).
+inline void sorted_manifolds(btDispatcher* d, std::vector<btPersistentManifold*>& out) {
+  out.clear();
+  const int n = d->getNumManifolds();
+  out.reserve(static_cast<std::size_t>(n));
+  for (int k = 0; k < n; ++k) out.push_back(d->getManifoldByIndexInternal(k));
+  std::sort(out.begin(), out.end(), [](const btPersistentManifold* a, const btPersistentManifold* b) {
+    const std::uint64_t a0 = body_key(a->getBody0()), b0 = body_key(b->getBody0());
+    if (a0 != b0) return a0 < b0;
+    return body_key(a->getBody1()) < body_key(b->getBody1());
+  });
+}
+
+class CanonicalWorld final : public btDiscreteDynamicsWorld {
+ public:
+  using btDiscreteDynamicsWorld::btDiscreteDynamicsWorld;
+
+  /// The world's joints in creation order (RigidWorld keeps it: its joint slots in slot order;
+  /// entries may be null for slots without a constraint).
+  std::vector<btTypedConstraint*> joint_order;
+
+  void solveConstraints(btContactSolverInfo& info) override {
+    btDispatcher* d = getDispatcher();
+    // Sleeping and waking, as Bullet's buildAndProcessIslands does before it solves.
+    m_islandManager->buildIslands(d, this);
+    auto awake = [](const btCollisionObject* o) {
+      return !o->isStaticOrKinematicObject() && o->getActivationState() != ISLAND_SLEEPING;
+    };
+    bodies_.clear();
+    for (int i = 0; i < m_nonStaticRigidBodies.size(); ++i)
+      if (awake(m_nonStaticRigidBodies[i])) bodies_.push_back(m_nonStaticRigidBodies[i]);
+    sorted_manifolds(d, all_);
+    manifolds_.clear();
+    for (btPersistentManifold* m : all_) {
+      const btCollisionObject* a = m->getBody0();
+      const btCollisionObject* b = m->getBody1();
+      if ((awake(a) || awake(b)) && d->needsResponse(a, b)) manifolds_.push_back(m);
+    }
+    constraints_.clear();
+    for (btTypedConstraint* c : joint_order)
+      if (c && c->isEnabled() && (awake(&c->getRigidBodyA()) || awake(&c->getRigidBodyB())))
+        constraints_.push_back(c);
+    m_constraintSolver->prepareSolve(getNumCollisionObjects(), d->getNumManifolds());
+    if (!bodies_.empty() || !manifolds_.empty() || !constraints_.empty())
+      m_constraintSolver->solveGroup(bodies_.empty() ? nullptr : bodies_.data(), static_cast<int>(bodies_.size()),
+                                     manifolds_.empty() ? nullptr : manifolds_.data(),
+                                     static_cast<int>(manifolds_.size()),
+                                     constraints_.empty() ? nullptr : constraints_.data(),
+                                     static_cast<int>(constraints_.size()), info, m_debugDrawer, d);
+    m_constraintSolver->allSolved(info, m_debugDrawer);
+  }
+
+ private:
+  std::vector<btCollisionObject*> bodies_;
+  std::vector<btPersistentManifold*> all_, manifolds_;
+  std::vector<btTypedConstraint*> constraints_;
+};
+
+}  // namespace hs::rigid::detail
