@@ -23,6 +23,9 @@ struct RunOptions {
   double flush_interval = 60.0;
   bool fsync = false;  ///< --fsync: fsync(2) after every flush (serial; MPI-IO syncs itself)
   bool ignore_memory_limit = false;    ///< --ignore-memory-limit: build even past the memory estimate
+  // `hybridsim calibrate` only (calibrate_command.h)
+  std::string calibrate_tests = "tension,bending,strip";  ///< --tests: which virtual tests to run
+  double max_strip_steps = 6e4;        ///< --max-strip-steps: above it the strip test is softened
 };
 
 /// Exit code of a run stopped by SIGINT/SIGTERM: 128 + the signal (130, 143).
