@@ -102,7 +102,8 @@ int calibrate_command(const RunOptions& opt, std::ostream& out, std::FILE* progr
   j["predicted"] = {{"E", ci.youngs_modulus}, {"nu", ci.poisson_ratio}, {"flexural_strength", ci.flexural_strength},
                     {"tensile_strength", ci.tensile_strength}};
   j["tests"] = {{"tension", {{"particles", t.particles}, {"nu_z", t.poisson_ratio_z}}},
-                {"bending", {{"particles", b.particles}, {"span", b.span}, {"width", b.width}, {"peak_force", b.peak_force}}},
+                {"bending", {{"particles", b.particles}, {"span", b.span}, {"width", b.width}, {"peak_force", b.peak_force},
+                              {"peak_strength", b.peak_strength}, {"first_break_time", b.first_break_time}}},
                 {"strip", {{"particles", st.particles}, {"softening", st.softening}, {"beam_characteristic_length", st.strip_length},
                            {"fit_rms", st.fit_rms}}}};
   j["seconds"] = seconds;

@@ -8,7 +8,11 @@
 //   bending_test   three-point bending of a beam of the scene's thickness h (span 8 h, 4 rows):
 //                  free spheres (contact only, no friction) under the bottom layer at the
 //                  supports and above the top layer at mid-span, the loader moving down;
-//                  sigma_f = 3 F_max L / (2 b h^2) as ISO 19906 uses a flexural strength.
+//                  sigma_f = 3 F L / (2 b h^2) as ISO 19906 uses a flexural strength, F the load
+//                  when the first bond breaks (in the bottom fibre at mid-span): a brittle beam
+//                  fails there, while the lattice's load after it depends on the dynamics of the
+//                  bond cascade (peak / first 1.3 ... 1.7 with the bond damping and the loading
+//                  rate), so only the first failure is a property of the material.
 //   strip_test     a floating strip (6 L_c long, 6 rows, gravity, Column buoyancy) loaded at one
 //                  end: the deflection profile is fitted with the semi-infinite beam on an elastic
 //                  foundation, w = e^(-lambda s)(A cos lambda s + B sin lambda s), and
@@ -43,8 +47,11 @@ struct TensionResult {
 };
 
 struct BendingResult {
-  double flexural_strength = 0;  ///< Pa
+  double flexural_strength = 0;  ///< Pa, at the first bond failure
   double peak_force = 0;         ///< N
+  double first_break_force = 0;  ///< N, the load one step before the first bond broke
+  double peak_strength = 0;      ///< Pa, 3 F_peak L / (2 b h^2) (not the flexural strength: see above)
+  double first_break_time = 0;   ///< in fundamental periods T1
   double span = 0, width = 0, thickness = 0;  ///< m
   std::size_t particles = 0;
 };
