@@ -272,6 +272,7 @@ Built build_engine(const scene::Scene& s, bool check_dt) {
   using namespace bonded;
   Built out;
   out.engine = std::make_unique<Engine>(engine_def(s));
+  out.calibrated = calibrate_ice(s);
   Engine& e = *out.engine;
   const double D = s.material.particle_diameter;
   const double c = hcp_layer_spacing(D);

@@ -7,6 +7,7 @@
 #include "bonded/engine.h"
 #include "mesh/tri_mesh.h"
 #include "scene/scene.h"
+#include "sim/calibrated_ice.h"
 
 #include <memory>
 #include <string>
@@ -35,6 +36,9 @@ struct Built {
   double structure_radius = 0.0;        ///< see structure_radius()
   std::vector<std::string> structure_parts;
   mesh::TriMesh structure_mesh;         ///< the structure's mesh as built (the engine keeps its own copy)
+  /// The ice as the lattice has it (springs, E, nu, flexural/tensile and bond strengths and where
+  /// they came from): calibrate_ice(scene), what engine_def used; for ISO and the conversion.
+  CalibratedIce calibrated;
 };
 // ---- structure ----
 /// The structure's mesh in its own frame (make_pier or the loaded file). InputError at
