@@ -243,7 +243,7 @@ BendingResult bending_test(const scene::Scene& s, const LabOptions& o) {
   auto& ps = e.particles();
   double F_peak = 0, F_prev = 0;
   std::uint64_t next_report = 0;
-  while (e.time() < 3.0 * t_load) {
+  while (e.time() < 10.0 * t_load) {
     const double v = V * std::min(1.0, e.time() / t_ramp);
     for (auto g : loader) ps.v[ps.local(g)] = Vec3(0, 0, -v);
     e.step();
