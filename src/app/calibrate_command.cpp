@@ -103,7 +103,7 @@ int calibrate_command(const RunOptions& opt, std::ostream& out, std::FILE* progr
                     {"tensile_strength", ci.tensile_strength}};
   j["tests"] = {{"tension", {{"particles", t.particles}, {"nu_z", t.poisson_ratio_z}}},
                 {"bending", {{"particles", b.particles}, {"span", b.span}, {"width", b.width}, {"peak_force", b.peak_force},
-                              {"peak_strength", b.peak_strength}, {"first_break_time", b.first_break_time}}},
+                              {"peak_strength", b.peak_strength}, {"strength_scale", b.strength_scale}, {"first_break_time", b.first_break_time}}},
                 {"strip", {{"particles", st.particles}, {"softening", st.softening}, {"beam_characteristic_length", st.strip_length},
                            {"fit_rms", st.fit_rms}}}};
   j["seconds"] = seconds;

@@ -52,6 +52,7 @@ struct BendingResult {
   double first_break_force = 0;  ///< N, the load one step before the first bond broke
   double peak_strength = 0;      ///< Pa, 3 F_peak L / (2 b h^2) (not the flexural strength: see above)
   double first_break_time = 0;   ///< in fundamental periods T1
+  double strength_scale = 1;     ///< bond strengths x this in the test (sigma_f/E = 1.2e-4), result / this
   double span = 0, width = 0, thickness = 0;  ///< m
   std::size_t particles = 0;
 };

@@ -97,8 +97,9 @@ double shear_ratio_for_poisson(int layers, double nu) {
 namespace {
 
 // ---- committed strength table (docs/engine.md, "Calibrated ice") ----
-// Flexural strength (three-point bending, span 8 h, at the first bond failure) / bond tensile
-// strength (shear strength equal), measured with `hybridsim calibrate --tests bending` on
+// Flexural strength (three-point bending, span 8 h, at the first bond failure, linear regime:
+// bonds scaled to sigma_f/E = 1.2e-4) / bond tensile strength (shear strength equal), measured
+// with `hybridsim calibrate --tests bending` on
 // scenes/level_ice_cone.json with --set ice.thickness (2, 3, 4, 6 layers of D = 0.2 m) and
 // --set material.poisson_ratio = 0.45 (clamped: k_s/k_n = 0.02), 0.3, 0.15 and 0 (k_s = k_n).
 struct FlexRow {
@@ -107,13 +108,9 @@ struct FlexRow {
   std::array<double, 4> flex;   ///< sigma_f / sigma_c at each
 };
 constexpr FlexRow kFlexural[] = {
-    // Two points are not measurements: the test's frictionless point supports let the 2-layer
-    // k_s = k_n beam and the 4-layer k_s/k_n = 0.42 beam slide until the load levelled off (1.37
-    // and 1.38 sigma_c) before any bond broke; they hold the 3-layer value and the log-linear
-    // interpolation of their row's neighbours.
-    {2, {0.0200, 0.0620, 0.4414, 1.0}, {1.1340, 1.1391, 1.3396, 1.7808 /*3-layer value*/}},
-    {3, {0.0200, 0.0550, 0.4285, 1.0}, {1.1692, 1.1843, 1.3933, 1.7808}},
-    {4, {0.0200, 0.0528, 0.4223, 1.0}, {1.1073, 1.2424, 1.687 /*interpolated*/, 1.8715}},
+    {2, {0.0200, 0.0620, 0.4414, 1.0}, {1.1366, 1.1413, 1.3487, 1.5890}},
+    {3, {0.0200, 0.0550, 0.4285, 1.0}, {1.1745, 1.1897, 1.4442, 1.7407}},
+    {4, {0.0200, 0.0528, 0.4223, 1.0}, {1.1127, 1.1332, 1.4003, 1.7217}},
 };
 
 double interp_log(const std::array<double, 4>& x, const std::array<double, 4>& y, double v) {
