@@ -5,6 +5,7 @@
 //   hybridsim iso FILE.json                                   ISO 19906 estimate as JSON
 //   hybridsim bench NAME                                      built-in benchmark (JSON line)
 //   hybridsim ridge scene.json [-o ridge.h5]                  build a ridge of rigid blocks
+//   hybridsim calibrate SCENE_OR_MATERIAL.json [--set ...]    virtual lab tests of the lattice
 //   hybridsim --version
 //   mpirun -np N hybridsim scene.json ...                     the same run on N ranks (one output file)
 // Exit codes: 0 ok, 1 internal error, 2 bad input (hs::InputError), 3 simulation unstable
@@ -13,6 +14,7 @@
 // Under mpirun every rank runs the command; rank 0 alone prints (a rank with an error of its own
 // prints it too). MPI is initialised only when an MPI launcher started the process.
 #include "app/bench.h"
+#include "app/calibrate_command.h"
 #include "app/ridge_command.h"
 #include "app/run.h"
 #include "common/error.h"
@@ -89,6 +91,15 @@ int main(int argc, char** argv) {
   ridge->add_option("-o,--output", ridge_out, "output HDF5 file (default: <name>_ridge.h5)");
   ridge->add_flag("--ignore-memory-limit", opt.ignore_memory_limit,
                   "generate even when the estimated block count exceeds the machine's available memory");
+  CLI::App* calibrate = app.add_subcommand("calibrate", "virtual lab tests (tension, 3-point bending, floating "
+                                                         "strip) of the scene's lattice against its target ice: "
+                                                         "table and JSON (docs/engine.md, \"Calibrated ice\")");
+  add_common(calibrate, false);
+  calibrate->add_option("--tests", opt.calibrate_tests, "comma-separated subset of tension,bending,strip (default all)");
+  calibrate->add_option("--max-strip-steps", opt.max_strip_steps,
+                        "DEM steps of the floating-strip test above which its springs are softened and L_c scaled "
+                        "back (default 6e4)")
+      ->check(CLI::PositiveNumber);
   CLI::App* bench = app.add_subcommand("bench", "run a built-in benchmark and print one JSON line");
   bench->add_option("name", bench_name, "benchmark name")->required();
 
@@ -108,6 +119,7 @@ int main(int argc, char** argv) {
       return 2;
     }
     if (*iso) return hs::app::iso_command(opt, out);
+    if (*calibrate) return root ? hs::app::calibrate_command(opt, std::cout, stderr) : 0;
     if (*check) return hs::app::check_scene(opt, out, std::cerr);
     return hs::app::run_scene(opt, out, progress);
   } catch (const hs::InputError& e) {

@@ -2,6 +2,7 @@
 // load the scene -> build the simulation -> step it while the recorders write the series ->
 // analyse and report.
 #include "app/run.h"
+#include "sim/calibrated_ice.h"
 
 #include "analysis/iso19906.h"
 #include "app/checkpoint.h"
@@ -45,6 +46,7 @@ io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm, bool
   meta.fsync_on_flush = fsync;
   meta.scene_text = s.json.dump(2);
   meta.program_version = HYBRIDSIM_VERSION;
+  meta.root_attributes.emplace_back("calibrated_ice", sim::calibrated_ice_to_json(sim::calibrate_ice(s)).dump());
   meta.comm = &comm;
   return meta;
 }
@@ -155,6 +157,14 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   out << "; ice top z = " << sci(b.layout.top_z, 4) << " m, bottom z = " << sci(b.layout.bottom_z, 4) << " m)\n";
   out << "bonds:            " << b.bonds << " (" << sci(b.particles ? 2.0 * b.bonds / b.particles : 0.0, 3)
       << " per particle)\n";
+  {
+    const sim::CalibratedIce ci = sim::calibrate_ice(s);
+    for (const auto& w : ci.warnings) err << "warning: " << w << "\n";
+    out << "ice:              " << ci.model << ": k_n = " << sci(ci.kn, 4) << " N/m, k_s = " << sci(ci.ks, 4)
+        << " N/m; lattice E = " << sci(ci.youngs_modulus, 4) << " Pa, nu = " << sci(ci.poisson_ratio, 3)
+        << ", flexural strength " << sci(ci.flexural_strength, 4) << " Pa (bonds " << sci(ci.bond_tensile_strength, 4)
+        << " Pa from " << ci.strength_source << ")\n";
+  }
   out << "walls:            " << s.walls.size() << "\n";
   if (sim.has_structure()) {
     const auto& st = s.structure;
@@ -254,6 +264,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   // 1. load: the scene file, --set overrides applied, validated
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   print_warnings(s.warnings, progress);
+  print_warnings(sim::calibrate_ice(s).warnings, progress);
   // --restart: the checkpoint and the rows before it are read before anything is created (the
   // output may be the restarted file itself); the output defaults to that run file.
   std::optional<Restart> restart;

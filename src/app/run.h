@@ -26,6 +26,9 @@ struct RunOptions {
   /// --restart: continue the run of this run file (or of its checkpoint file) from its last
   /// checkpoint (docs/output.md, "Checkpoints"); empty = start from t = 0.
   std::string restart;
+  // `hybridsim calibrate` only (calibrate_command.h)
+  std::string calibrate_tests = "tension,bending,strip";  ///< --tests: which virtual tests to run
+  double max_strip_steps = 6e4;        ///< --max-strip-steps: above it the strip test is softened
 };
 
 /// Exit code of a run stopped by SIGINT/SIGTERM: 128 + the signal (130, 143).

@@ -630,6 +630,7 @@ RunFile::RunFile(const std::string& path, RunFileMeta meta) : impl_(std::make_un
     const hid_t root = m.file.get();
     m.write_string_attr(root, "scene", m.meta.scene_text, "/");
     m.write_string_attr(root, "program_version", m.meta.program_version, "/");
+    for (const auto& [name, value] : m.meta.root_attributes) m.write_string_attr(root, name.c_str(), value, "/");
     // Attribute values must agree on every rank: rank 0's clock.
     const std::string created = m.parallel() ? m.meta.comm->broadcast(iso_time_utc_now()) : iso_time_utc_now();
     m.write_string_attr(root, "created", created, "/");

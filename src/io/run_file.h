@@ -56,6 +56,8 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
+#include <vector>
 
 namespace hs::par {
 class Comm;
@@ -67,6 +69,8 @@ namespace hs::io {
 struct RunFileMeta {
   std::string scene_text;       ///< the scene JSON as read (root attribute "scene")
   std::string program_version;  ///< e.g. HYBRIDSIM_VERSION (root attribute "program_version")
+  /// Further root string attributes (name, value), e.g. "calibrated_ice" (a JSON object).
+  std::vector<std::pair<std::string, std::string>> root_attributes;
   /// XDMF index written next to the file on every flush that follows a new snapshot
   /// (atomically: temp file + rename). Empty: the HDF5 path with its extension replaced by ".xmf".
   std::string xdmf_path;

@@ -26,10 +26,10 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval", "checkpoint_interval"}},
       {"/material",
        {"density", "youngs_modulus", "poisson_ratio", "particle_diameter", "restitution", "friction",
-        "contact_model", "stiffness"}},
+        "contact_model", "stiffness", "stiffness_model", "flexural_strength", "tensile_strength"}},
       {"/bonds",
        {"tensile_strength", "shear_strength", "damping_ratio", "radius_ratio", "freeze_tensile_strength",
-        "freeze_shear_strength"}},
+        "freeze_shear_strength", "freeze_strength_fraction"}},
       {"/water", {"enabled", "level", "density", "linear_drag", "drag_coefficient", "current"}},
       {"/ice", {"type", "thickness", "length", "width", "origin", "consolidated_layer"}},
       {"/ice/consolidated_layer", {"thickness", "width", "center_x"}},
@@ -161,8 +161,21 @@ void read_material(const JsonObject& root, Scene& s) {
   m.friction = o.number("friction", m.friction, Range::non_negative(), "", "Coulomb coefficient, e.g. 0.3");
   const std::string cm = o.choice("contact_model", contact_model_name(ContactModel::LinearSpringDashpot), contact_model_names());
   m.contact_model = contact_model_from_name(cm);
-  if (o.has("stiffness"))
+  const std::string sm = o.choice("stiffness_model", "calibrated", {"calibrated", "paper_eq1"});
+  m.stiffness_model = sm == "paper_eq1" ? StiffnessModel::PaperEq1 : StiffnessModel::Calibrated;
+  if (o.has("stiffness")) {
+    if (m.stiffness_model == StiffnessModel::Calibrated)
+      throw InputError(o.at("stiffness"), "an explicit spring stiffness needs \"stiffness_model\": \"paper_eq1\"; "
+                                          "the calibrated model derives the stiffness from youngs_modulus and "
+                                          "poisson_ratio (remove \"stiffness\", or add \"stiffness_model\": "
+                                          "\"paper_eq1\")");
     m.stiffness = o.number("stiffness", 0.0, Range::positive(), "N/m", "omit it for the paper's Eq. 1, pi E D / 12");
+  }
+  m.flexural_strength = o.number("flexural_strength", m.flexural_strength, Range::positive(), "Pa",
+                                 "flexural strength of the ice (3-point bending), e.g. 0.5e6");
+  m.tensile_strength = o.number("tensile_strength", m.tensile_strength, Range::non_negative(), "Pa",
+                                "uniaxial tensile strength of the ice, e.g. 0.3e6 (a target for `hybridsim "
+                                "calibrate`), 0 for none");
 }
 
 void read_bonds(const JsonObject& root, Scene& s) {
@@ -181,6 +194,25 @@ void read_bonds(const JsonObject& root, Scene& s) {
                                        "freeze bonds are weak, e.g. 2e4");
   b.freeze_shear_strength =
       o.number("freeze_shear_strength", b.freeze_shear_strength, Range::positive(), "Pa", "e.g. 2e4");
+  b.freeze_strength_fraction = o.number("freeze_strength_fraction", 0.0, {0.0, 1.0, false, true}, "",
+                                        "freeze-bond strength as a fraction of the lattice bond's, e.g. 0.1");
+  if (o.has("freeze_strength_fraction"))
+    for (const char* k : {"freeze_tensile_strength", "freeze_shear_strength"})
+      if (o.has(k))
+        throw InputError(o.at(k), std::string("give the freeze-bond strength either as /bonds/") + k +
+                                      " (Pa) or as /bonds/freeze_strength_fraction (of the lattice bond's), "
+                                      "not both");
+  b.strength_given = o.has("tensile_strength") || o.has("shear_strength");
+  // "calibrated" derives the bond strength from material.flexural_strength: both at once would be
+  // two answers to one question.
+  const bool flex_given = root.has("material") && root.raw("material").contains("flexural_strength");
+  if (b.strength_given && flex_given && s.material.stiffness_model == StiffnessModel::Calibrated)
+    throw InputError(o.at(o.has("tensile_strength") ? "tensile_strength" : "shear_strength"),
+                     "with the calibrated stiffness model the bond strength is derived from "
+                     "/material/flexural_strength (" + json_fmt(s.material.flexural_strength) +
+                         " Pa); give one of the two: remove this bond strength, or remove "
+                         "/material/flexural_strength to set the bonds directly (or use "
+                         "\"stiffness_model\": \"paper_eq1\")");
 }
 
 void read_water(const JsonObject& root, Scene& s) {

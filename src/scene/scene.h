@@ -44,7 +44,11 @@ inline constexpr double kMaxSteps = 1e10;
 /// `dt_origin` says where dt came from ("" for time.dt itself, or e.g. " (Eq. 2: ...)").
 void check_step_count(const TimeDef& t, double dt, const std::string& dt_origin = "");
 
+/// How the lattice's springs and bond strengths follow from the material (sim/calibrated_ice.h).
+enum class StiffnessModel { Calibrated, PaperEq1 };
+
 struct MaterialDef {
+  StiffnessModel stiffness_model = StiffnessModel::Calibrated;  ///< "calibrated" (default) | "paper_eq1"
   double density = 920.0;          ///< kg/m^3
   double youngs_modulus = 1e9;     ///< Pa
   double poisson_ratio = 0.3;
@@ -52,7 +56,9 @@ struct MaterialDef {
   double restitution = 0.3;        ///< contacts
   double friction = 0.3;           ///< particle-particle Coulomb coefficient
   ContactModel contact_model = ContactModel::LinearSpringDashpot;  ///< the law (common/contact_model.h)
-  double stiffness = 0.0;          ///< k_n = k_t, N/m; 0 = paper Eq. 1, pi E D / 12
+  double stiffness = 0.0;          ///< k_n = k_t, N/m; 0 = paper Eq. 1, pi E D / 12 (paper_eq1 only)
+  double flexural_strength = 0.5e6;  ///< Pa, target of "calibrated" (3-point bending, as ISO uses it)
+  double tensile_strength = 0.0;   ///< Pa, target reported by `hybridsim calibrate`; 0 = none
   /// The stiffness actually used (Eq. 1 when `stiffness` is 0).
   double effective_stiffness() const;
 };
@@ -64,6 +70,8 @@ struct BondsDef {
   double radius_ratio = 1.0;               ///< bond radius / particle radius
   double freeze_tensile_strength = 2e4;    ///< Pa (freeze bonds between blocks)
   double freeze_shear_strength = 2e4;      ///< Pa
+  double freeze_strength_fraction = 0.0;   ///< > 0: freeze strengths = this x the lattice bond's
+  bool strength_given = false;             ///< tensile_strength or shear_strength was in the scene
 };
 
 struct WaterDef {

@@ -2,6 +2,7 @@
 
 #include "common/error.h"
 #include "mesh/pier.h"
+#include "sim/calibrated_ice.h"
 #include "io/ridge_file.h"
 
 #include <algorithm>
@@ -32,8 +33,9 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   w.quadratic_drag_cd = b.drag_coefficient;
   w.friction = d.block_friction;
   w.solver_iterations = b.solver_iterations;
-  w.freeze_bond_strength = s.bonds.freeze_tensile_strength;
-  w.freeze_bond_shear_strength = s.bonds.freeze_shear_strength;
+  const CalibratedIce ci = calibrate_ice(s);  // freeze strengths may be a fraction of the lattice bond's
+  w.freeze_bond_strength = ci.freeze_tensile_strength;
+  w.freeze_bond_shear_strength = ci.freeze_shear_strength;
   d.safety_factor = b.safety_factor;
   d.stress_time_constant = b.stress_time_constant;
   d.flexural_strength = b.flexural_strength > 0.0 ? b.flexural_strength : s.analysis.flexural_strength;

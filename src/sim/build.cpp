@@ -2,6 +2,7 @@
 #include "sim/build.h"
 
 #include "bonded/hcp_lattice.h"
+#include "sim/calibrated_ice.h"
 #include "common/error.h"
 #include "common/ice_formulas.h"
 #include "json/reader.h"
@@ -29,7 +30,10 @@ bonded::EngineDef engine_def(const scene::Scene& s) {
   d.density = m.density;
   d.gravity = s.gravity;
   d.contact_model = m.contact_model;
-  const double k = m.effective_stiffness();
+  // Springs and bond strengths of the scene's stiffness model (calibrated_ice.h); paper_eq1 gives
+  // k_n = k_s = effective_stiffness() and the bonds' strengths exactly as before the model existed.
+  const CalibratedIce ci = calibrate_ice(s);
+  const double k = ci.kn, ks = ci.ks;
   d.contact.kn = d.contact.kt = k;
   d.contact.zeta_n = d.contact.zeta_t = damping_ratio_from_restitution(m.restitution);
   d.contact.mu = m.friction;
@@ -39,11 +43,12 @@ bonded::EngineDef engine_def(const scene::Scene& s) {
   const double mass = m.density * hcp_cell_volume(D);
   const double inertia = 0.4 * mass * r * r;
   const auto& b = s.bonds;
-  d.bond[static_cast<int>(BondKind::Lattice)] = ParallelBondParams::from_stiffness(
-      k, k, b.radius_ratio * r, b.tensile_strength, b.shear_strength, b.damping_ratio, 0.5 * mass, 0.5 * inertia);
+  d.bond[static_cast<int>(BondKind::Lattice)] =
+      ParallelBondParams::from_stiffness(k, ks, b.radius_ratio * r, ci.bond_tensile_strength, ci.bond_shear_strength,
+                                         b.damping_ratio, 0.5 * mass, 0.5 * inertia);
   d.bond[static_cast<int>(BondKind::Freeze)] =
-      ParallelBondParams::from_stiffness(k, k, b.radius_ratio * r, b.freeze_tensile_strength,
-                                         b.freeze_shear_strength, b.damping_ratio, 0.5 * mass, 0.5 * inertia);
+      ParallelBondParams::from_stiffness(k, ks, b.radius_ratio * r, ci.freeze_tensile_strength,
+                                         ci.freeze_shear_strength, b.damping_ratio, 0.5 * mass, 0.5 * inertia);
   d.water.enabled = s.water.enabled;
   d.water.level = s.water.level;
   d.water.density = s.water.density;
@@ -276,6 +281,7 @@ Built build_engine(const scene::Scene& s, bool check_dt) {
   using namespace bonded;
   Built out;
   out.engine = std::make_unique<Engine>(engine_def(s));
+  out.calibrated = calibrate_ice(s);
   Engine& e = *out.engine;
   const double D = s.material.particle_diameter;
   const double c = hcp_layer_spacing(D);

@@ -8,6 +8,7 @@
 #include "mesh/tri_mesh.h"
 #include "scene/scene.h"
 #include "sim/blocks.h"
+#include "sim/calibrated_ice.h"
 
 #include <memory>
 #include <string>
@@ -37,6 +38,9 @@ struct Built {
   std::vector<std::string> structure_parts;
   mesh::TriMesh structure_mesh;         ///< the structure's mesh as built (the engine keeps its own copy)
   double lattice_thickness = 0.0;       ///< m, lattice_mean_thickness of the sheet as built (ISO input)
+  /// The ice as the lattice has it (springs, E, nu, flexural/tensile and bond strengths and where
+  /// they came from): calibrate_ice(scene), what engine_def used; for ISO and the conversion.
+  CalibratedIce calibrated;
 };
 // ---- structure ----
 /// The structure's mesh in its own frame (make_pier or the loaded file). InputError at

@@ -4,6 +4,7 @@
 #include "common/error.h"
 #include "scene/scene.h"
 #include "sim/build.h"
+#include "sim/calibrated_ice.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -78,11 +79,26 @@ TEST(Scene, DefaultsFromAMinimalScene) {
   EXPECT_EQ(s.stability.max_overlap_ratio, 0.5);
   EXPECT_TRUE(s.warnings.empty());
 
+  // Default stiffness model "calibrated" (sim/calibrated_ice.h): the springs and the bond strength
+  // come from E, nu and material.flexural_strength (0.5 MPa), not from Eq. 1 and bonds.* (those
+  // are the "paper_eq1" values, checked below).
+  EXPECT_EQ(s.material.stiffness_model, scene::StiffnessModel::Calibrated);
+  EXPECT_EQ(s.material.flexural_strength, 0.5e6);
   const auto d = sim::engine_def(s);
-  EXPECT_DOUBLE_EQ(d.contact.kn, kPi * 1e9 * 0.5 / 12.0);
+  const sim::CalibratedIce ci = sim::calibrate_ice(s);
+  EXPECT_EQ(d.contact.kn, ci.kn);
+  EXPECT_EQ(d.bond[0].kn, ci.kn);
+  EXPECT_EQ(d.bond[0].ks, ci.ks);
   EXPECT_DOUBLE_EQ(d.bond[0].radius, 0.25);
-  EXPECT_EQ(d.bond[0].sigma_c, 0.6e6);
+  EXPECT_EQ(d.bond[0].sigma_c, ci.bond_tensile_strength);
+  EXPECT_NEAR(ci.flexural_strength, 0.5e6, 1e-6);
   EXPECT_TRUE(d.water.enabled);
+
+  json j = minimal();
+  j["material"]["stiffness_model"] = "paper_eq1";
+  const auto dp = sim::engine_def(scene::parse_scene(j));
+  EXPECT_DOUBLE_EQ(dp.contact.kn, kPi * 1e9 * 0.5 / 12.0);
+  EXPECT_EQ(dp.bond[0].sigma_c, 0.6e6);
 }
 
 TEST(Scene, BuiltSheetFloatsAtEquilibrium) {
