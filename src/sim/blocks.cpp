@@ -38,7 +38,10 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   w.freeze_bond_shear_strength = ci.freeze_shear_strength;
   d.safety_factor = b.safety_factor;
   d.stress_time_constant = b.stress_time_constant;
-  d.flexural_strength = b.flexural_strength > 0.0 ? b.flexural_strength : s.analysis.flexural_strength;
+  // The conversion's flexural limit: the lattice's own strength (calibrated), as ISO is given.
+  d.flexural_strength = b.flexural_strength > 0.0                                   ? b.flexural_strength
+                        : ci.model == "calibrated" && ci.flexural_strength > 0.0 ? ci.flexural_strength
+                                                                                  : s.analysis.flexural_strength;
   return d;
 }
 

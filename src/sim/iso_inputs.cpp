@@ -137,10 +137,14 @@ IsoAssembly assemble_iso_inputs(const scene::Scene& s, const IsoMeasured& m) {
   set("waterline_diameter", &IsoInputs::waterline_diameter, pier.waterline_diameter,
       scene_or_default(s, "/structure/pier/waterline_diameter"), "/structure/pier/waterline_diameter");
 
-  // Strength and stiffness: the calibrated lattice's when there is one.
-  if (m.calibrated)
+  // Strength and stiffness: the calibrated lattice's when there is one; an explicit
+  // analysis.flexural_strength still overrides it (as every analysis.* value).
+  if (given(s, "/analysis/flexural_strength"))
+    set("flexural_strength", &IsoInputs::flexural_strength, an.flexural_strength, IsoSource::Scene,
+        "/analysis/flexural_strength");
+  else if (m.calibrated)
     set("flexural_strength", &IsoInputs::flexural_strength, m.calibrated->flexural_strength, IsoSource::Calibrated,
-        "flexural strength of the calibrated lattice");
+        "flexural strength of the calibrated lattice (three-point bending, /material/flexural_strength the target)");
   else if (given(s, "/material/flexural_strength") && s.json["material"]["flexural_strength"].is_number())
     set("flexural_strength", &IsoInputs::flexural_strength, s.json["material"]["flexural_strength"].get<double>(),
         IsoSource::Scene, "/material/flexural_strength");

@@ -25,6 +25,7 @@
 //   the rest           the scene (pier, densities, friction, |gravity|) or the defaults.
 #pragma once
 
+#include "sim/calibrated_ice.h"
 #include "analysis/iso19906.h"
 #include "bonded/particle_store.h"
 #include "mesh/pier.h"
@@ -49,13 +50,6 @@ struct IsoInputRecord {
   std::string note;    ///< how it was obtained, for people (may be empty)
 };
 
-/// Calibrated ice properties of the lattice (filled by the calibration once it exists).
-struct CalibratedIce {
-  double youngs_modulus = 0.0;     ///< Pa
-  double poisson_ratio = 0.0;      ///< -
-  double flexural_strength = 0.0;  ///< Pa
-};
-
 /// What a ridge file says about its keel (sim::BlockSetup::ridge).
 struct RidgeKeel {
   std::string path;                 ///< the ridge file, as resolved
@@ -69,7 +63,7 @@ struct IsoMeasured {
   std::optional<double> thickness;      ///< mean thickness of the built lattice, m
   std::optional<double> rubble_height;  ///< peak of /series/pile_height_mean, m
   std::optional<RidgeKeel> ridge;
-  std::optional<CalibratedIce> calibrated;
+  std::optional<CalibratedIce> calibrated;  ///< the lattice's E, nu, flexural strength ("calibrated" model)
 };
 
 struct IsoAssembly {

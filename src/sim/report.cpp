@@ -68,7 +68,7 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
       if (sim.built().lattice_thickness > 0) m.thickness = sim.built().lattice_thickness;
       if (f.has_pile_mean) m.rubble_height = f.max_pile_mean;
       m.ridge = sim.blocks().ridge;
-      // m.calibrated = ...;  the calibrated lattice's E, nu and flexural strength, once there is one
+      if (sim.built().calibrated.model == "calibrated") m.calibrated = sim.built().calibrated;
       const IsoAssembly as = assemble_iso_inputs(s, m);
       an.iso_in = as.in;
       an.iso_records = as.records;

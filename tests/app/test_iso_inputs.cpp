@@ -148,14 +148,24 @@ TEST(IsoInputs, SceneValuesOverrideTheRunAndTheRidgeFile) {
 
 TEST(IsoInputs, CalibratedIceReplacesTheScenesEAndStrength) {
   IsoMeasured m;
-  m.calibrated = hs::sim::CalibratedIce{5e9, 0.28, 0.6e6};
-  const IsoAssembly a = assemble(pier_scene(), m);
+  hs::sim::CalibratedIce ci;
+  ci.youngs_modulus = 5e9;
+  ci.poisson_ratio = 0.28;
+  ci.flexural_strength = 0.6e6;
+  m.calibrated = ci;
+  json j = pier_scene();
+  j.erase("analysis");
+  const IsoAssembly a = assemble(j, m);
   expect_complete(a);
   EXPECT_EQ(a.in.youngs_modulus, 5e9);
   EXPECT_EQ(a.in.poisson_ratio, 0.28);
   EXPECT_EQ(a.in.flexural_strength, 0.6e6);
   for (const char* k : {"youngs_modulus", "poisson_ratio", "flexural_strength"})
     EXPECT_EQ(a.record(k).source, IsoSource::Calibrated) << k;
+  // An explicit analysis.flexural_strength overrides the lattice's, as every analysis.* value.
+  const IsoAssembly o = assemble(pier_scene(), m);
+  EXPECT_EQ(o.in.flexural_strength, 6e4);
+  EXPECT_EQ(o.record("flexural_strength").source, IsoSource::Scene);
 }
 
 TEST(IsoInputs, KeelWidthOnThePierIsThePressureWeightedDiameter) {
