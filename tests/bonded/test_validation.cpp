@@ -215,7 +215,9 @@ TEST(Validation, FloatingStripEndLoadMatchesHetenyi) {
   d.water.level = 0.0;
   d.water.density = kRhoW;
   d.water.model = BuoyancyModel::Column;
-  d.water.linear_drag = 350.0;  // N s/m per particle: heave damping ratio ~0.75
+  // Heave damping ratio zeta = c_lin / (2 sqrt(rho_w g rho_i h)) = 0.75 (box_water.h (5a); the
+  // lattice's bottom face carries it, docs/engine.md "Water drag").
+  d.water.linear_drag_per_area = 0.75 * 2.0 * std::sqrt(kRhoW * kG * ice.rho * h);
   Engine e(d);
   Pose pose;
   pose.position = Vec3(0, 0, 0.5 * h - draft);  // floating equilibrium of the column model
@@ -374,14 +376,16 @@ void build_slab(Engine& e, const test::Ice& ice, int nl, double z_bottom, std::v
   e.check_time_step();
 }
 
-EngineDef floating_def(const test::Ice& ice, double linear_drag) {
+/// zeta: heave damping ratio of a slab of thickness h, c_lin = 2 zeta sqrt(rho_w g rho_i h)
+/// (box_water.h (5a): the linear drag on the bottom face; docs/engine.md "Water drag").
+EngineDef floating_def(const test::Ice& ice, double zeta, double h) {
   EngineDef d = lattice_def(ice, INFINITY, INFINITY, 0.1);
   d.gravity = Vec3(0, 0, -kG);
   d.water.enabled = true;
   d.water.level = 0.0;
   d.water.density = kRhoW;
   d.water.model = BuoyancyModel::Column;
-  d.water.linear_drag = linear_drag;
+  d.water.linear_drag_per_area = 2.0 * zeta * std::sqrt(kRhoW * kG * ice.rho * h);
   return d;
 }
 
@@ -410,7 +414,7 @@ TEST(Validation, FloatingSlabFreeboardAndHeavePeriod) {
   // (a) Freeboard: released 0.1 m too high, heave damped by linear drag, settled.
   double freeboard = 0;
   {
-    Engine e(floating_def(ice, 350.0));
+    Engine e(floating_def(ice, 0.75, h));
     std::vector<GlobalId> top;
     build_slab(e, ice, nl, -draft + 0.1, top);
     e.run(static_cast<std::uint64_t>(8.0 / e.dt()));
@@ -426,7 +430,7 @@ TEST(Validation, FloatingSlabFreeboardAndHeavePeriod) {
   // (b) Heave: released 0.05 m below equilibrium, no drag (bond damping acts only on
   // relative motion, so it does not damp the rigid heave).
   {
-    Engine e(floating_def(ice, 0.0));
+    Engine e(floating_def(ice, 0.0, h));
     std::vector<GlobalId> top;
     build_slab(e, ice, nl, -draft - 0.05, top);
     const double z_eq = mean_z(e) + 0.05;
