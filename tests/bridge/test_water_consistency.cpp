@@ -48,9 +48,11 @@ TEST(WaterConsistency, SubmergedBlockRisesAtTheSameTerminalVelocityRigidAndAsPar
   // Measured, particles against rigid: +1.00 % and +1.33 % (126 particles, D = 0.2 m); rigid
   // against the box law: -0.00 % and -0.42 % (the quadratic case is still 1 % short of terminal
   // at 3 s: the rise velocity's time constant is ~1 s there, 0.23 s with the linear drag);
-  // particles against the box law: +1.00 %, +0.90 %. With the old per-particle drag (0.5 N s/m
-  // per particle and C_d pi r^2 on every submerged particle) the particles rose at 3.8 and 1.9
-  // times the rigid block's velocity (docs/engine.md, "Water drag").
+  // particles against the box law: +1.00 %, +0.90 %. Checked that it fails with the old
+  // per-particle drag put back in water_force (0.5 N s/m per particle, the scenes' old figure,
+  // and 1/2 rho_w C_d pi r^2 |u| on every submerged particle): the particles rose at 0.583 m/s in
+  // both cases, 2.45 and 0.59 times the rigid block's velocity (with the scenes' old C_d = 0,
+  // ~12 m/s).
   for (const Drag w : {Drag{1000.0, 1.0}, Drag{0.0, 1.0}}) {
     const Rise r = rise(w);
     EXPECT_NEAR(r.particles / r.rigid, 1.0, 0.10);
@@ -78,7 +80,8 @@ TEST(WaterConsistency, TowedBlockFeelsTheSameDragRigidAndAsParticles) {
                 100.0 * (p.force / r.force - 1.0), r.cross, p.cross);
     // Measured, particles against rigid: x +0.62 %, y +3.56 %, z -0.17 % (the lattice's y faces
     // are its rows' sides, whose cells overhang the block's face by up to D/6); rigid against
-    // the box law at the mean speed: -0.02 %, -0.02 %, -0.36 %.
+    // the box law at the mean speed: -0.02 %, -0.02 %, -0.36 %. With the old per-particle drag
+    // (see above): -33 %, -33 %, -71 % of the rigid block's.
     EXPECT_NEAR(p.force / r.force, 1.0, 0.10) << names[k];
     EXPECT_NEAR(r.force / fa, 1.0, 0.02) << names[k];
   }
