@@ -154,12 +154,14 @@ TEST(ParallelConsistency, FloatingBlockConvertedAcrossTheCutsKeepsItsDraft) {
                 fd.z1, fd.t, fd.z0 - fd.z1, 100.0 * (fd.z0 - fd.z1) / fd.freeboard, fd.freeboard, fd.vmax,
                 std::abs(fd.z1 - fs.z1), std::abs(fd.vmax - fs.vmax), end.x, end.v);
   EXPECT_GT(fd.r.sites_trimmed, 0u) << "the test must exercise layer balancing";
-  EXPECT_LT(std::abs(fd.z1 - fd.z0), 0.011 * fd.freeboard);  // measured 0.109 % (1-3 ranks)
-  EXPECT_LT(fd.vmax, 1e-3);
+  // Measured 0.081 % (1-3 ranks; 0.109 % with the per-particle drag before the water was one
+  // for blocks and particles).
+  EXPECT_LT(std::abs(fd.z1 - fd.z0), 0.011 * fd.freeboard);
+  EXPECT_LT(fd.vmax, 1e-3);  // measured 4.86e-4 m/s (was 2.44e-4)
   EXPECT_EQ(fd.r.particles_created, fs.r.particles_created);
   EXPECT_EQ(end.count, static_cast<std::int64_t>(fs.r.particles_created));
-  EXPECT_LT(end.x, 5e-15);  // m; measured 0, 4.4e-16, 4.4e-16 (1; 2; 3 ranks)
-  EXPECT_LT(end.v, 2e-12);  // m/s; measured 0, 9.6e-14, 1.2e-13
+  EXPECT_LT(end.x, 5e-15);  // m; measured 0, 6.7e-16, 8.9e-16 (1; 2; 3 ranks)
+  EXPECT_LT(end.v, 2e-12);  // m/s; measured 0, 1.2e-13, 1.1e-13
   if (world().size() > 1) {
     EXPECT_EQ(ranks, world().size()) << "the block must straddle every cut";
     EXPECT_GT(across, 0) << "some bonds must join particles on different ranks";
