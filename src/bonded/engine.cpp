@@ -306,6 +306,46 @@ void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint
 }
 
 void Engine::build_neighbors() {
+  build_pair_list();
+  update_exposure();  // collective under MPI, like the rebuild itself
+}
+
+void Engine::update_exposure() {
+  // Per particle: sum of the unit directions to its bonded neighbours in its body frame (each
+  // component rounded, water.h), the largest component per axis and sign, and the bond count; both
+  // ends of every bond, ghost ends sent home under MPI (exposure_ghosts_home).
+  const std::size_t n = ps_.size();
+  exposure_sum_.assign(n, Vec3::Zero());
+  exposure_reach_pos_.assign(n, Vec3::Zero());
+  exposure_reach_neg_.assign(n, Vec3::Zero());
+  exposure_count_.assign(n, 0u);
+  if (def_.water.enabled) {
+    auto add = [&](std::uint32_t k, const Vec3& d) {
+      const Vec3 b = ps_.q[k].conjugate() * d;
+      const Vec3 bq(exposure_quantize(b.x()), exposure_quantize(b.y()), exposure_quantize(b.z()));
+      exposure_sum_[k] += bq;
+      exposure_reach_pos_[k] = exposure_reach_pos_[k].cwiseMax(bq);
+      exposure_reach_neg_[k] = exposure_reach_neg_[k].cwiseMax(-bq);
+      ++exposure_count_[k];
+    };
+    for (const Bond& b : bonds_) {
+      const Vec3 d = ps_.x[b.j] - ps_.x[b.i];
+      const double L = d.norm();
+      if (!(L > 0.0)) continue;
+      add(b.i, d / L);
+      add(b.j, -d / L);
+    }
+    if (parallel()) exposure_ghosts_home();
+  }
+  const std::size_t no = ps_.owned();
+  exposure_.resize(no);
+  for (std::size_t i = 0; i < no; ++i)
+    exposure_[i] = exposure_from_bonds(exposure_sum_[i], exposure_reach_pos_[i], exposure_reach_neg_[i], exposure_count_[i],
+                                       ps_.radius[i],
+                                       ps_.buoyant_volume[i]);
+}
+
+void Engine::build_pair_list() {
   const std::size_t n = ps_.size();
   ++stats_.neighbor_rebuilds;
   need_rebuild_ = false;
@@ -443,9 +483,13 @@ void Engine::field_forces() {
     ps_.f[i].setZero();
     ps_.torque[i].setZero();
   }
-  if (water)
+  if (water) {
+    if (exposure_.size() != n)
+      throw std::logic_error("water: particle exposure not updated since particles were added (Engine::rebuild)");
     for (std::size_t i = 0; i < n; ++i)
-      ps_.f[i] += water_force(def_.water, gmag, ps_.x[i], ps_.v[i], ps_.radius[i], ps_.buoyant_volume[i]);
+      ps_.f[i] += water_force(def_.water, gmag, ps_.x[i], ps_.v[i], ps_.radius[i], ps_.buoyant_volume[i], ps_.q[i],
+                              exposure_[i]);
+  }
 }
 
 ContactResult Engine::wall_contact(double delta, double r, const Vec3& n, double vn, const Vec3& vt,

@@ -294,6 +294,8 @@ class Engine {
   std::size_t mesh_wall_count() const { return meshes_.size(); }
   const MeshWallDef& mesh_wall(int k) const { return meshes_[k].def; }
   const MeshWallLoad& mesh_wall_load(int k) const { return meshes_[k].load; }
+  /// Water exposure of owned particle i (water.h), as of the last neighbour rebuild.
+  const ParticleExposure& exposure(std::size_t i) const { return exposure_[i]; }
   /// Current world position of mesh wall k's frame origin.
   const Vec3& mesh_wall_position(int k) const { return meshes_[k].position; }
   const StepStats& stats() const { return stats_; }
@@ -362,7 +364,13 @@ class Engine {
   std::size_t add_owned(const ParticleInit& p, GlobalId id);
   /// A particle of radius r joins the system somewhere (any rank): the skin and Eq. 2 follow it.
   void note_radius(double r);
+  /// Contact-pair list, then the particles' water exposure (collective under MPI).
   void build_neighbors();
+  void build_pair_list();
+  /// Every owned particle's ParticleExposure (water.h) from the bond list.
+  void update_exposure();
+  /// Under MPI: the ghost ends' exposure sums, reaches and counts added to their owners'.
+  void exposure_ghosts_home();
   /// Neighbour rebuild; under MPI first migration, load balance and new ghost lists.
   void rebuild();
   /// Rebuild if anyone needs it, else refresh ghosts (collective under MPI).
@@ -430,6 +438,9 @@ class Engine {
   };
   std::vector<MeshWall> meshes_;
   std::vector<ForceSource*> sources_;
+  std::vector<ParticleExposure> exposure_;  ///< per owned particle, from the last rebuild
+  std::vector<Vec3> exposure_sum_, exposure_reach_pos_, exposure_reach_neg_;  ///< scratch of update_exposure (owned + ghosts)
+  std::vector<std::uint32_t> exposure_count_;
   std::vector<mesh::MeshContact> mesh_contacts_;
   mesh::MeshQueryScratch mesh_scratch_;
   std::vector<Vec3> x_at_build_;

@@ -477,6 +477,28 @@ void Engine::refresh_bond_counts() {
   for (std::size_t i = 0; i < ps_.owned(); ++i) ps_.bond_count[i] = static_cast<std::uint8_t>(cnt[i]);
 }
 
+void Engine::exposure_ghosts_home() {
+  std::vector<Bytes> send(peers_.size()), recv;
+  for (std::size_t k = 0; k < peers_.size(); ++k)
+    for (std::uint32_t g = 0; g < ghost_n_[k]; ++g) {
+      const std::uint32_t i = ghost_start_[k] + g;
+      put(send[k], exposure_sum_[i]);
+      put(send[k], exposure_reach_pos_[i]);
+      put(send[k], exposure_reach_neg_[i]);
+      put(send[k], exposure_count_[i]);
+    }
+  comm_->exchange(peers_, send, recv);
+  for (std::size_t k = 0; k < peers_.size(); ++k) {  // ascending peer order
+    Reader rd{recv[k]};
+    for (std::uint32_t i : ghost_send_[k]) {
+      exposure_sum_[i] += rd.get<Vec3>();  // exact: quantized components (water.h)
+      exposure_reach_pos_[i] = exposure_reach_pos_[i].cwiseMax(rd.get<Vec3>());
+      exposure_reach_neg_[i] = exposure_reach_neg_[i].cwiseMax(rd.get<Vec3>());
+      exposure_count_[i] += rd.get<std::uint32_t>();
+    }
+  }
+}
+
 // Ghost updates: fixed-size records in persistent buffers, one round of messages each way.
 void Engine::forward_ghosts() {
   const auto t0 = SteadyClock::now();

@@ -8,6 +8,7 @@
 
 #include "common/state_archive.h"
 
+#include <array>
 #include <cstring>
 #include <stdexcept>
 #include <unordered_map>
@@ -136,6 +137,16 @@ void Engine::save_state(StateArchive& a, const std::string& p) const {
   a.put(p + "mesh_contacts", mesh_contacts);
   put_nested(a, p + "mesh_history", mesh_hist);
   a.put(p + "x_at_build", x_at_build_);
+  // Water exposure as of the last rebuild (bonds broken since count from the next one): kinds
+  // and face areas apart, so the records carry no padding bytes.
+  std::vector<std::uint8_t> exposure_kind(exposure_.size());
+  std::vector<std::array<double, 6>> exposure_area(exposure_.size());
+  for (std::size_t i = 0; i < exposure_.size(); ++i) {
+    exposure_kind[i] = exposure_[i].kind;
+    exposure_area[i] = exposure_[i].area;
+  }
+  a.put(p + "exposure_kind", exposure_kind);
+  a.put(p + "exposure_area", exposure_area);
   a.put_value(p + "stats", stats_);
   a.put_value(p + "parallel_stats", pstats_);
   const EngineScalars sc{max_disp2_, dt_, min_radius_, history_dt_, time_, halo_, max_bond_length_,
@@ -218,6 +229,15 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
     for (const auto& r : mesh_hist[k]) m.history.emplace(MeshWall::Key{r.gid, r.feature}, r.xi);
   }
   a.get_into(p + "x_at_build", x_at_build_);
+  const auto exposure_kind = a.get<std::uint8_t>(p + "exposure_kind");
+  const auto exposure_area = a.get<std::array<double, 6>>(p + "exposure_area");
+  if (exposure_kind.size() != exposure_area.size())
+    throw std::runtime_error("engine checkpoint: water exposure arrays of different lengths");
+  exposure_.resize(exposure_kind.size());
+  for (std::size_t i = 0; i < exposure_.size(); ++i) {
+    exposure_[i].kind = static_cast<ParticleExposure::Kind>(exposure_kind[i]);
+    exposure_[i].area = exposure_area[i];
+  }
   stats_ = a.get_value<StepStats>(p + "stats");
   pstats_ = a.get_value<ParallelStats>(p + "parallel_stats");
   max_disp2_ = sc.max_disp2;

@@ -30,7 +30,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/bonds",
        {"tensile_strength", "shear_strength", "damping_ratio", "radius_ratio", "freeze_tensile_strength",
         "freeze_shear_strength", "freeze_strength_fraction"}},
-      {"/water", {"enabled", "level", "density", "linear_drag", "drag_coefficient", "current"}},
+      {"/water", {"enabled", "level", "density", "linear_drag_per_area", "drag_coefficient", "current", "linear_drag"}},
       {"/ice", {"type", "thickness", "length", "width", "origin", "consolidated_layer"}},
       {"/ice/consolidated_layer", {"thickness", "width", "center_x"}},
       {"/walls/*", {"name", "point", "normal", "velocity", "friction"}},
@@ -222,10 +222,15 @@ void read_water(const JsonObject& root, Scene& s) {
   w.enabled = o.boolean("enabled", w.enabled);
   w.level = o.number("level", w.level, Range::any(), "m", "z of the water surface");
   w.density = o.number("density", w.density, Range::positive(), "kg/m^3", "sea water is about 1025");
-  w.linear_drag = o.number("linear_drag", w.linear_drag, Range::non_negative(), "N s/m",
-                           "linear drag per particle, damps heave; 0 for none");
+  if (o.has("linear_drag"))
+    throw InputError(o.at("linear_drag"),
+                     "water.linear_drag (N s/m per particle) was removed: blocks and particles now share one drag "
+                     "law per m^2 of wetted surface. Use \"linear_drag_per_area\" (Pa s/m, default 1000) instead; "
+                     "see docs/engine.md, \"Water drag\"");
+  w.linear_drag_per_area = o.number("linear_drag_per_area", w.linear_drag_per_area, Range::non_negative(), "Pa s/m",
+                                    "linear drag per m^2 of wetted surface (blocks and particles), e.g. 1000");
   w.drag_coefficient = o.number("drag_coefficient", w.drag_coefficient, Range::non_negative(), "",
-                                "quadratic drag coefficient C_d, e.g. 1; 0 for none");
+                                "quadratic drag coefficient C_d on leading faces (blocks and particles), e.g. 1");
   w.current = o.vec<3>("current", w.current, "m/s", "water velocity [vx, vy, vz]");
 }
 
@@ -484,9 +489,11 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
   read_block_sources(o, b, base_dir);
   b.density = o.number("density", s.material.density, Range::positive(), "kg/m^3", "ice density, e.g. 920");
   b.friction = o.number("friction", s.material.friction, Range::non_negative(), "", "ice-ice Coulomb coefficient");
-  b.linear_drag = o.number("linear_drag", b.linear_drag, Range::non_negative(), "Pa s/m",
-                           "linear drag per wetted face area (heave damper), e.g. 1000");
-  b.drag_coefficient = o.number("drag_coefficient", b.drag_coefficient, Range::non_negative(), "", "e.g. 1.0");
+  for (const char* k : {"linear_drag", "drag_coefficient"})
+    if (o.has(k))
+      throw InputError(o.at(k), std::string("blocks.") + k + " was removed: blocks and particles share the water's "
+                                "drag. Use water." + (k[0] == 'l' ? "linear_drag_per_area" : "drag_coefficient") +
+                                " instead (docs/engine.md, \"Water drag\")");
   b.solver_iterations = o.integer<int>("solver_iterations", b.solver_iterations, {1.0, 1000.0}, "",
                                        "Bullet sequential-impulse iterations, e.g. 20");
   b.rigid_dt = o.number("rigid_dt", b.rigid_dt, Range::non_negative(), "s",

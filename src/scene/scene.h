@@ -78,8 +78,10 @@ struct WaterDef {
   bool enabled = true;
   double level = 0.0;              ///< z of the surface, m
   double density = 1025.0;         ///< kg/m^3
-  double linear_drag = 0.0;        ///< N s/m per particle
-  double drag_coefficient = 0.0;   ///< quadratic drag C_d
+  /// Drag on rigid blocks and particles alike (docs/engine.md, "Water drag"): the face law of
+  /// src/rigid/box_water.h on each block's wetted faces and on each particle's exposed cell faces.
+  double linear_drag_per_area = 1000.0;  ///< c_lin, Pa s/m (N s/m per m^2 of wetted surface)
+  double drag_coefficient = 1.0;         ///< C_d, quadratic drag on leading faces
   Vec3 current = Vec3::Zero();     ///< m/s
 };
 
@@ -174,8 +176,6 @@ struct BlocksDef {
   std::vector<BlockItemDef> list;
   double density = 0.0;              ///< kg/m^3; 0 = material.density
   double friction = -1.0;            ///< ice-ice; < 0 = material.friction
-  double linear_drag = 1000.0;       ///< Pa s/m on wetted faces (rigid/linear_drag)
-  double drag_coefficient = 1.0;     ///< C_d on leading wetted faces
   int solver_iterations = 20;
   double rigid_dt = 0.0;             ///< s; 0 = the largest step the stability rule allows
   std::string conversion = "hybrid"; ///< "hybrid", "all_at_start" or "never"

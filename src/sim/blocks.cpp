@@ -29,8 +29,8 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   w.water_level = s.water.level;
   w.water_density = s.water.density;
   w.water_current = s.water.current;
-  w.linear_drag = b.linear_drag;
-  w.quadratic_drag_cd = b.drag_coefficient;
+  w.linear_drag = s.water.linear_drag_per_area;  // one water for blocks and particles
+  w.quadratic_drag_cd = s.water.drag_coefficient;
   w.friction = d.block_friction;
   w.solver_iterations = b.solver_iterations;
   const CalibratedIce ci = calibrate_ice(s);  // freeze strengths may be a fraction of the lattice bond's

@@ -53,7 +53,7 @@ bonded::EngineDef engine_def(const scene::Scene& s) {
   d.water.level = s.water.level;
   d.water.density = s.water.density;
   d.water.model = BuoyancyModel::Column;
-  d.water.linear_drag = s.water.linear_drag;
+  d.water.linear_drag_per_area = s.water.linear_drag_per_area;
   d.water.drag_coefficient = s.water.drag_coefficient;
   d.water.current = s.water.current;
   d.limits.max_speed = s.stability.max_speed;

@@ -44,7 +44,7 @@ json tiny() {
     "time": {"duration": 0.03, "output_interval": 0.005, "snapshot_interval": 0.01},
     "material": {"particle_diameter": 0.5},
     "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
-    "water": {"linear_drag": 5},
+    "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 1.5, "length": 4, "width": 2},
     "walls": [
       {"name": "pusher", "point": [3.9, 0, 0.2], "normal": [-0.788, 0, -0.616], "velocity": [-2, 0, 0]},
@@ -173,7 +173,7 @@ json tiny_pier() {
     "time": {"duration": 0.12, "output_interval": 0.004},
     "material": {"particle_diameter": 0.25, "youngs_modulus": 1e7},
     "bonds": {"tensile_strength": 1e5, "shear_strength": 1e5},
-    "water": {"linear_drag": 0.5},
+    "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 0.6, "length": 3, "width": 4, "origin": [0, -2]},
     "walls": [{"name": "far_end", "point": [3, 0, 0], "normal": [-1, 0, 0]}],
     "structure": {

@@ -56,7 +56,7 @@ json pier_scene() {
     "time": {"duration": 0.02, "output_interval": 0.01},
     "material": {"particle_diameter": 0.5},
     "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
-    "water": {"linear_drag": 5},
+    "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 1.5, "length": 4, "width": 2, "origin": [0, -1]},
     "structure": {"type": "pier", "position": [-8.5, 0, 0], "velocity": [0.5, 0, 0]}
   })");

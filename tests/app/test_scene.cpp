@@ -103,7 +103,7 @@ TEST(Scene, DefaultsFromAMinimalScene) {
 
 TEST(Scene, BuiltSheetFloatsAtEquilibrium) {
   json j = minimal();
-  j["water"]["linear_drag"] = 5.0;
+  j["water"]["linear_drag_per_area"] = 1000.0;
   const scene::Scene s = scene::parse_scene(j);
   sim::Built b = sim::build_engine(s);
   const double D = 0.5, c = bonded::hcp_layer_spacing(D);
@@ -186,6 +186,23 @@ TEST(SceneErrors, UnknownKeysSuggestTheNearestOne) {
   j = minimal();
   j["walls"] = json::array({{{"name", "a"}, {"point", {0, 0, 0}}, {"normal", {1, 0, 0}}, {"velocty", {0, 0, 0}}}});
   expect_error([&] { scene::parse_scene(j); }, "/walls/0/velocty", "did you mean \"velocity\"");
+}
+
+TEST(SceneErrors, RemovedDragKeysNameTheirReplacement) {
+  // One water for blocks and particles (docs/engine.md, "Water drag"): the per-particle
+  // water.linear_drag (N s/m) and the blocks' own drag are refused, naming the water's fields.
+  expect_bad("/water/linear_drag", 0.5, "/water/linear_drag", "\"linear_drag_per_area\" (Pa s/m");
+  json j = minimal();
+  j["blocks"] = {{"list", json::array({{{"half_extents", {0.5, 0.5, 0.2}}, {"position", {8, 8, 0}}}})},
+                 {"linear_drag", 1000}};
+  expect_error([&] { scene::parse_scene(j); }, "/blocks/linear_drag", "water.linear_drag_per_area");
+  j["blocks"].erase("linear_drag");
+  j["blocks"]["drag_coefficient"] = 1.0;
+  expect_error([&] { scene::parse_scene(j); }, "/blocks/drag_coefficient", "water.drag_coefficient");
+  j["blocks"].erase("drag_coefficient");
+  const scene::Scene s = scene::parse_scene(j);  // and without them the scene is fine
+  EXPECT_EQ(s.water.linear_drag_per_area, 1000.0);
+  EXPECT_EQ(s.water.drag_coefficient, 1.0);
 }
 
 TEST(SceneErrors, WrongTypes) {

@@ -44,7 +44,7 @@ json long_scene() {
     "time": {"duration": 1000, "output_interval": 0.005},
     "material": {"particle_diameter": 0.5},
     "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
-    "water": {"linear_drag": 5},
+    "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 1.5, "length": 4, "width": 2},
     "walls": [{"name": "back", "point": [0, 0, 0], "normal": [1, 0, 0]}]
   })");
@@ -253,7 +253,7 @@ TEST(Stop, UnstableRunEndsWithTheLastGoodStateAsASnapshot) {
     "time": {"duration": 0.05, "output_interval": 0.002},
     "material": {"particle_diameter": 0.5},
     "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
-    "water": {"linear_drag": 5},
+    "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 1.5, "length": 4, "width": 2},
     "stability": {"max_speed": 0.5},
     "walls": [

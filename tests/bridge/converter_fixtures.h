@@ -167,10 +167,10 @@ inline bonded::EngineDef floating_def(const Material& mat) {
   d.water.enabled = true;
   d.water.density = kRhoW;
   d.water.model = bonded::BuoyancyModel::Column;
-  // Heave of the block: omega = sqrt(rho_w g / (rho_i h)); c_lin = 2 m omega per particle ~ critical.
+  // Heave of the block critically damped: c_lin = 2 sqrt(rho_w g rho_i h) on its bottom face
+  // (box_water.h (5a); docs/engine.md "Water drag").
   const double h = floating_thickness(mat);
-  const double omega_heave = std::sqrt(kRhoW * kG / (kRhoI * h));
-  d.water.linear_drag = 2.0 * mat.cell_mass() * omega_heave;
+  d.water.linear_drag_per_area = 2.0 * std::sqrt(kRhoW * kG * kRhoI * h);
   return d;
 }
 

@@ -76,6 +76,9 @@ TEST(Converter, FloatingBlockKeepsItsDraftAndComesToRest) {
               "draft change %.2e m = %.3f %% of the freeboard; max speed %.2e m/s\n",
               f.r.particles_created, f.r.sites_trimmed, kFloatingLayers, f.h, f.freeboard, f.z0, f.z1, f.t,
               f.z0 - f.z1, 100.0 * (f.z0 - f.z1) / f.freeboard, f.vmax);
+  // Measured: draft change -0.081 % of the freeboard, largest speed 4.86e-4 m/s after 1 s, with
+  // critical heave damping on the bottom face (converter_fixtures.h); the per-particle drag
+  // before the water was one for blocks and particles gave -0.109 % and 2.44e-4 m/s.
   EXPECT_LT(std::abs(f.z1 - f.z0), 0.02 * f.freeboard);
   EXPECT_LT(f.vmax, 1e-3);
 }

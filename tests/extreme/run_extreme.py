@@ -34,7 +34,7 @@ BASE = {
     "time": {"duration": 0.3, "output_interval": 0.01, "snapshot_interval": 0.1},
     "material": {"particle_diameter": 0.25, "youngs_modulus": 1e8},
     "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
-    "water": {"linear_drag": 0.5},
+    "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, -1]},
     "structure": {
         "pier": {"waterline_diameter": 1.0, "cone_angle_deg": 52, "cone_top_z": 0.5, "neck_height": 0.5,
