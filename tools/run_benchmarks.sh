@@ -3,7 +3,8 @@
 #   tools/run_benchmarks.sh [NAME ...]        (default: granular bonded)
 #   RANKS=2 tools/run_benchmarks.sh           the same under mpirun -np 2 (strong scaling;
 #                                             the CSV name column becomes e.g. granular@2)
-# Prints each benchmark's JSON line and appends a CSV row to bench/results-<host>.csv.
+# Prints each benchmark's JSON line and appends a CSV row to bench/results-<host>.csv
+# (date, commit, name, particles, steps, wall_s, particle_steps_per_s, peak_rss_mb, cpu).
 # Run on a quiet machine: the figures are single-core wall-clock rates.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -14,7 +15,9 @@ names=("$@")
 mkdir -p bench
 csv="bench/results-$(hostname).csv"
 [ -f "$csv" ] || echo "date,commit,name,particles,steps,wall_s,particle_steps_per_s,peak_rss_mb,cpu" > "$csv"
+# The code measured: the commit, marked -dirty when tracked files differ from it.
 commit=$(git rev-parse --short HEAD 2>/dev/null || echo unknown)
+[ "$commit" != unknown ] && ! git diff --quiet HEAD -- 2>/dev/null && commit="$commit-dirty"
 for n in "${names[@]}"; do
   if [ "${RANKS:-1}" -gt 1 ]; then
     line=$(OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 mpirun --bind-to none -np "$RANKS" "$exe" bench "$n")

@@ -102,6 +102,9 @@ int main(int argc, char** argv) {
       ->check(CLI::PositiveNumber);
   CLI::App* bench = app.add_subcommand("bench", "run a built-in benchmark and print one JSON line");
   bench->add_option("name", bench_name, "benchmark name")->required();
+  hs::app::BenchOptions bench_opt;
+  bench->add_option("--lammps-data", bench_opt.lammps_data,
+                    "granular: also write the settled pack as a LAMMPS data file (tools/bench/granular.lmp)");
 
   try {
     app.parse(argc, argv);
@@ -111,7 +114,7 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (*bench) return hs::app::run_benchmark(bench_name, out, std::cerr, world);
+    if (*bench) return hs::app::run_benchmark(bench_name, out, std::cerr, world, bench_opt);
     // Ridge building is serial (a replicated rigid world gains nothing from more ranks): rank 0.
     if (*ridge) return root ? hs::app::ridge_command(ridge_scene, ridge_out, std::cout, opt.ignore_memory_limit) : 0;
     if (opt.scene_path.empty()) {

@@ -426,6 +426,7 @@ void Engine::build_pair_list() {
   const std::uint32_t n_owned = static_cast<std::uint32_t>(ps_.n_owned);
 
   pairs_.clear();
+  pair_smeff_.clear();  // (made again by the pair kernel)
   for (std::uint32_t i = 0; i < n; ++i) {
     const Vec3 xi = ps_.x[i];
     const double ri = ps_.radius[i];
@@ -503,12 +504,14 @@ ContactResult Engine::wall_contact(double delta, double r, const Vec3& n, double
 }
 
 void Engine::wall_forces() {
-  const std::size_t n = ps_.owned();
+  // Only the particles that can touch a wall are tested (refresh_wall_candidates); for the
+  // others the loop below would find dist >= r and keep their springs at zero.
+  refresh_wall_candidates();
   for (std::size_t k = 0; k < walls_.size(); ++k) {
     const PlaneWall& w = walls_[k];
     Vec3 total = Vec3::Zero();
     auto& hist = wall_hist_[k];
-    for (std::size_t i = 0; i < n; ++i) {
+    for (const std::uint32_t i : wall_cand_[k]) {
       const double r = ps_.radius[i];
       const double dist = (ps_.x[i] - w.point).dot(w.normal);
       if (dist >= r) {
@@ -706,7 +709,13 @@ void Engine::evaluate_forces(double history_dt, bool finish) {
   wall_forces();
   if (!meshes_.empty()) mesh_forces();
   if (!sources_.empty()) source_forces();
-  with_contact_law(def_, [&](const auto& law) { pair_forces(PairLaw<std::decay_t<decltype(law)>>{law}); });
+  with_contact_law(def_, [&](const auto& law) {
+    using L = std::decay_t<decltype(law)>;
+    if constexpr (std::is_same_v<L, LinearLaw> || std::is_same_v<L, HertzLaw>)
+      pair_kernel(law);  // contact_kernel.cpp
+    else
+      pair_forces(PairLaw<L>{law});  // a law without a vectorised kernel
+  });
   bond_forces();
   const double dt_force = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   pstats_.force_seconds += dt_force;

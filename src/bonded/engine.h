@@ -134,6 +134,13 @@ struct GidPairHash {
   }
 };
 
+/// The tangential spring of one particle-particle contact, named by the pair's global ids
+/// (checkpoints, cached benchmark packs): how contact history is read and set from outside.
+struct PairHistory {
+  GlobalId a, b;  ///< a < b
+  Vec3 xi;        ///< tangential spring: displacement of b's contact point relative to a's, m
+};
+
 struct Bond {
   std::uint32_t i, j;    ///< local indices (refreshed on reorder)
   GlobalId gi, gj;       ///< gi < gj: canonical order, so results do not depend on storage order
@@ -302,6 +309,19 @@ class Engine {
   const EngineDef& def() const { return def_; }
   EngineDef& mutable_def() { return def_; }
 
+  // ---- friction history by name (checkpoints, cached benchmark packs) ----
+  /// The nonzero tangential springs of the contact pairs this rank computes, sorted by (a, b).
+  std::vector<PairHistory> contact_history() const;
+  /// Replaces the contact springs (pairs not listed start at zero). They are taken up by the
+  /// next neighbour rebuild, which this forces. Under MPI each rank may pass them all.
+  void set_contact_history(const std::vector<PairHistory>& h);
+  /// Plane wall k's tangential spring on particle i (local index; owned particles).
+  const Vec3& wall_history(int k, std::size_t i) const { return wall_hist_[k][i]; }
+  void set_wall_history(int k, std::size_t i, const Vec3& xi) {
+    wall_hist_[k][i] = xi;
+    forces_valid_ = false;
+  }
+
   EnergyReport energy() const;
   Vec3 linear_momentum() const;
   Vec3 angular_momentum(const Vec3& about = Vec3::Zero()) const;
@@ -399,6 +419,10 @@ class Engine {
   void sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint32_t ncells);
   void field_forces();
   void wall_forces();
+  /// Plane walls: the owned particles that can touch wall k before its list is refreshed
+  /// (contact_kernel.cpp). Refreshed after every neighbour rebuild and whenever the wall moved
+  /// more than half a skin along its normal (or turned) since; the others' springs are zero.
+  void refresh_wall_candidates();
   /// Contact law against an immovable wall (plane or mesh) with the wall's friction.
   ContactResult wall_contact(double delta, double r, const Vec3& n, double vn, const Vec3& vt, double m,
                              double friction, Vec3& xi) const;
@@ -406,6 +430,14 @@ class Engine {
   void source_forces();
   template <class Law>
   void pair_forces(const Law& law);
+  /// The particle-pair loop of the built-in laws, in blocks: gather, a branch-free vectorised
+  /// law over the touching pairs, scatter in list order (contact_kernel.cpp). Same physics as
+  /// pair_forces (round-off apart).
+  void pair_kernel(const LinearLaw& law);
+  void pair_kernel(const HertzLaw& law);
+  template <class LawTag>
+  void pair_kernel_impl(const LawTag& law);
+  const double* pair_smeff();
   void bond_forces();
   void kick_half();
   void check_blowup(std::uint32_t worst, double worst_v2, bool unstable_anywhere) const;
@@ -418,9 +450,13 @@ class Engine {
   BondBatch bond_batch_;                 ///< SoA copy of bonds_ for the kernel (bond_kernel.h)
   std::vector<BrokenBond> broken_bonds_; ///< scratch of bond_forces
   std::vector<ContactPair> pairs_;
+  std::vector<double> pair_smeff_;  ///< per pair: sqrt(m_eff) (contact_kernel.cpp; cleared at rebuilds)
   std::vector<PlaneWall> walls_;
   std::vector<Vec3> wall_force_;
   std::vector<std::vector<Vec3>> wall_hist_;  ///< [wall][particle]
+  std::vector<std::vector<std::uint32_t>> wall_cand_;  ///< [wall]: owned particles near it, ascending
+  std::vector<PlaneWall> wall_at_cand_;                ///< [wall]: the wall when its list was made
+  std::uint64_t wall_cand_rebuild_ = ~std::uint64_t{0};  ///< neighbor_rebuilds when the lists were made
   struct MeshWall {
     MeshWallDef def;
     std::unique_ptr<mesh::MeshGrid> grid;

@@ -308,8 +308,11 @@ StripResult strip_test(const scene::Scene& s, double poisson_ratio, const LabOpt
   d.water.model = BuoyancyModel::Column;
   d.water.drag_coefficient = 0.0;
   d.water.current = Vec3::Zero();
-  // Heave damping ratio ~0.7 per particle: c = 1.4 sqrt(k_column m), k_column = rho_w g V_cell / c.
-  d.water.linear_drag = 1.4 * std::sqrt(rho_w * g * hcp_cell_volume(D) / c * L.mass);
+  // Heave damping ratio ~0.7 per particle, c = 1.4 sqrt(k_column m) with k_column = rho_w g V_cell / c,
+  // i.e. layers x c per column. The water's linear drag acts on the wetted faces only (water.h): the
+  // strip's bottom face, D^2 sqrt(3)/2 per column.
+  const double c_particle = 1.4 * std::sqrt(rho_w * g * hcp_cell_volume(D) / c * L.mass);
+  d.water.linear_drag_per_area = std::max(1.0, std::round(h / c)) * c_particle / (D * D * 0.5 * std::sqrt(3.0));
   Engine e(d);
   const double draft = flotation_draft(h, L.rho, rho_w);
   Pose pose;

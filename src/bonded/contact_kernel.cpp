@@ -1,0 +1,319 @@
+// Contact history by name (engine.h, "friction history by name").
+#include "engine.h"
+
+#include <algorithm>
+#include <cmath>
+
+namespace hs::bonded {
+
+std::vector<PairHistory> Engine::contact_history() const {
+  // A pending set_contact_history (carried_history_) takes precedence over the list, as it does
+  // in the next neighbour rebuild.
+  std::vector<PairHistory> out;
+  out.reserve(carried_history_.size() + pairs_.size() / 2);
+  for (const auto& [k, xi] : carried_history_)
+    if (xi.squaredNorm() > 0.0) out.push_back({k.a, k.b, xi});
+  const std::size_t from_carried = out.size();
+  for (const auto& p : pairs_) {
+    if (p.xi.squaredNorm() == 0.0) continue;
+    const GlobalId gi = ps_.gid[p.i], gj = ps_.gid[p.j];
+    const GidPair k = GidPair::of(gi, gj);
+    if (from_carried != 0 && carried_history_.count(k) != 0) continue;
+    out.push_back({k.a, k.b, gi < gj ? p.xi : Vec3(-p.xi)});
+  }
+  std::sort(out.begin(), out.end(),
+            [](const PairHistory& x, const PairHistory& y) { return x.a != y.a ? x.a < y.a : x.b < y.b; });
+  return out;
+}
+
+void Engine::set_contact_history(const std::vector<PairHistory>& h) {
+  for (auto& p : pairs_) p.xi.setZero();
+  carried_history_.clear();
+  for (const auto& e : h) {
+    const GidPair k = GidPair::of(e.a, e.b);
+    carried_history_[k] = e.a < e.b ? e.xi : Vec3(-e.xi);
+  }
+  need_rebuild_ = true;
+  forces_valid_ = false;
+}
+
+}  // namespace hs::bonded
+
+namespace hs::bonded {
+
+void Engine::refresh_wall_candidates() {
+  // Between neighbour rebuilds every particle stays within skin/2 of where it was at the
+  // rebuild, so within `skin` of where it is at any refresh; a wall may move skin/2 along its
+  // normal before its list is refreshed. A particle further than r + 1.5 skin from the wall now
+  // cannot touch it before the next refresh.
+  const std::size_t n = ps_.owned();
+  const double sk = skin();
+  const bool rebuilt = wall_cand_rebuild_ != stats_.neighbor_rebuilds || wall_cand_.size() != walls_.size();
+  wall_cand_.resize(walls_.size());
+  wall_at_cand_.resize(walls_.size());
+  for (std::size_t k = 0; k < walls_.size(); ++k) {
+    const PlaneWall& w = walls_[k];
+    const PlaneWall& c = wall_at_cand_[k];
+    if (!rebuilt && w.normal == c.normal && std::abs((w.point - c.point).dot(w.normal)) <= 0.5 * sk) continue;
+    auto& list = wall_cand_[k];
+    auto& hist = wall_hist_[k];
+    list.clear();
+    const double reach = 1.5 * sk;
+    for (std::size_t i = 0; i < n; ++i) {
+      if ((ps_.x[i] - w.point).dot(w.normal) < ps_.radius[i] + reach)
+        list.push_back(static_cast<std::uint32_t>(i));
+      else
+        hist[i].setZero();  // (dist >= r: the full loop would have zeroed it now)
+    }
+    wall_at_cand_[k] = w;
+  }
+  wall_cand_rebuild_ = stats_.neighbor_rebuilds;
+}
+
+}  // namespace hs::bonded
+
+// ---------------------------------------------------------------- the pair kernel
+//
+// The pair list is a half list in cell order (build_neighbors: owned particles sorted by cell,
+// each particle's partners j > i contiguous), and each pair carries its tangential spring.
+// The loop runs in blocks of kBlock pairs:
+//   1. gather (scalar): the touching pairs of the block into structure-of-arrays scratch;
+//      pairs apart have their spring cleared, as in pair_forces;
+//   2. law (vectorised, no branches): forces, torques, new springs, overlap ratios;
+//   3. scatter (scalar, in list order): forces and torques onto the particles, springs back.
+// Each particle's force is summed in the list's order, so the result does not depend on the
+// block size or vector width and is bit-identical from run to run.
+
+namespace hs::bonded {
+
+namespace {
+
+constexpr int kBlock = 64;
+
+struct Block {
+  alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock];
+  alignas(64) double ri[kBlock], rj[kBlock], smeff[kBlock];
+  alignas(64) double dvx[kBlock], dvy[kBlock], dvz[kBlock];
+  alignas(64) double wix[kBlock], wiy[kBlock], wiz[kBlock], wjx[kBlock], wjy[kBlock], wjz[kBlock];
+  alignas(64) double xix[kBlock], xiy[kBlock], xiz[kBlock];
+  // out
+  alignas(64) double fx[kBlock], fy[kBlock], fz[kBlock];
+  alignas(64) double tix[kBlock], tiy[kBlock], tiz[kBlock], tjx[kBlock], tjy[kBlock], tjz[kBlock];
+  alignas(64) double delta[kBlock];
+  std::uint32_t pair[kBlock];
+};
+
+// The normal spring and the damping coefficients of the two laws, lane by lane.
+struct LinearTag {
+  double kn, kt, inv_kt, cn, ct, mu;  // cn = 2 zeta_n sqrt(kn): gamma_n = cn sqrt(m_eff)
+  // elastic normal force, tangential stiffness (and its inverse, 0 for none), damping for one pair
+  static inline void springs(const LinearTag& l, double delta, double /*rstar*/, double smeff, double& fel, double& st,
+                             double& inv_st, double& gn, double& gt) {
+    fel = l.kn * delta;
+    st = l.kt;
+    inv_st = l.inv_kt;
+    gn = l.cn * smeff;
+    gt = l.ct * smeff;
+  }
+};
+
+struct HertzTag {
+  double e_star, g_star, c, mu;  // c = -2 sqrt(5/6) beta
+  static inline void springs(const HertzTag& l, double delta, double rstar, double smeff, double& fel, double& st,
+                             double& inv_st, double& gn, double& gt) {
+    const double a = std::sqrt(rstar * (delta > 0.0 ? delta : 0.0));
+    const double sn = 2.0 * l.e_star * a;
+    st = 8.0 * l.g_star * a;
+    inv_st = st > 0.0 ? 1.0 / (st > 0.0 ? st : 1.0) : 0.0;
+    fel = (4.0 / 3.0) * l.e_star * a * delta;
+    gn = l.c * std::sqrt(sn) * smeff;
+    gt = l.c * std::sqrt(st) * smeff;
+  }
+};
+
+template <class Tag>
+void block_law(Block& b, int m, const Tag& law, double dt) {
+#pragma omp simd
+  for (int k = 0; k < m; ++k) {
+    const double d2 = b.dx[k] * b.dx[k] + b.dy[k] * b.dy[k] + b.dz[k] * b.dz[k];
+    const double dist = std::sqrt(d2);
+    const double inv = 1.0 / dist;
+    const double nx = b.dx[k] * inv, ny = b.dy[k] * inv, nz = b.dz[k] * inv;
+    const double rs = b.ri[k] + b.rj[k];
+    const double delta = rs - dist;
+    const double si = b.ri[k] - 0.5 * delta, sj = b.rj[k] - 0.5 * delta;
+    // contact arms ai = si n (from i), aj = -sj n (from j)
+    const double aix = si * nx, aiy = si * ny, aiz = si * nz;
+    const double ajx = -sj * nx, ajy = -sj * ny, ajz = -sj * nz;
+    // vrel = v_j + w_j x aj - v_i - w_i x ai
+    const double vx = b.dvx[k] + (b.wjy[k] * ajz - b.wjz[k] * ajy) - (b.wiy[k] * aiz - b.wiz[k] * aiy);
+    const double vy = b.dvy[k] + (b.wjz[k] * ajx - b.wjx[k] * ajz) - (b.wiz[k] * aix - b.wix[k] * aiz);
+    const double vz = b.dvz[k] + (b.wjx[k] * ajy - b.wjy[k] * ajx) - (b.wix[k] * aiy - b.wiy[k] * aix);
+    const double vn = vx * nx + vy * ny + vz * nz;
+    const double vtx = vx - vn * nx, vty = vy - vn * ny, vtz = vz - vn * nz;
+    // two immovable particles (smeff = 0): no force, the spring kept
+    const bool act = b.smeff[k] != 0.0;
+    const double smeff = b.smeff[k];
+    const double rstar = b.ri[k] * b.rj[k] / rs;
+    double fel, st, inv_st, gn, gt;
+    Tag::springs(law, delta, rstar, smeff, fel, st, inv_st, gn, gt);
+    const double fn = fel - gn * vn;
+    // spring history: onto the tangent plane keeping its length, then advanced by vt dt
+    double xix = b.xix[k], xiy = b.xiy[k], xiz = b.xiz[k];
+    const double before = xix * xix + xiy * xiy + xiz * xiz;
+    const double xn = xix * nx + xiy * ny + xiz * nz;
+    xix -= xn * nx;
+    xiy -= xn * ny;
+    xiz -= xn * nz;
+    const double after = xix * xix + xiy * xiy + xiz * xiz;
+    const double keep = after > 0.0 ? std::sqrt(before / (after > 0.0 ? after : 1.0)) : 1.0;
+    xix = xix * keep + vtx * dt;
+    xiy = xiy * keep + vty * dt;
+    xiz = xiz * keep + vtz * dt;
+    double ftx = -st * xix - gt * vtx, fty = -st * xiy - gt * vty, ftz = -st * xiz - gt * vtz;
+    // Coulomb cap; the spring is rewound so that it alone carries the capped force
+    const double ft2 = ftx * ftx + fty * fty + ftz * ftz;
+    const double cap = law.mu * (fn > 0.0 ? fn : 0.0);
+    const bool slip = ft2 > cap * cap;
+    const double s = slip ? cap / std::sqrt(slip ? ft2 : 1.0) : 1.0;
+    ftx *= s;
+    fty *= s;
+    ftz *= s;
+    xix = slip ? -(ftx + gt * vtx) * inv_st : xix;
+    xiy = slip ? -(fty + gt * vty) * inv_st : xiy;
+    xiz = slip ? -(ftz + gt * vtz) * inv_st : xiz;
+    b.xix[k] = act ? xix : b.xix[k];
+    b.xiy[k] = act ? xiy : b.xiy[k];
+    b.xiz[k] = act ? xiz : b.xiz[k];
+    const double fx = act ? fn * nx + ftx : 0.0, fy = act ? fn * ny + fty : 0.0, fz = act ? fn * nz + ftz : 0.0;
+    b.fx[k] = fx;
+    b.fy[k] = fy;
+    b.fz[k] = fz;
+    b.tix[k] = aiy * fz - aiz * fy;
+    b.tiy[k] = aiz * fx - aix * fz;
+    b.tiz[k] = aix * fy - aiy * fx;
+    b.tjx[k] = ajy * fz - ajz * fy;
+    b.tjy[k] = ajz * fx - ajx * fz;
+    b.tjz[k] = ajx * fy - ajy * fx;
+    b.delta[k] = act ? delta : 0.0;
+  }
+}
+
+}  // namespace
+
+const double* Engine::pair_smeff() {
+  // sqrt(m_eff) of each pair, m_eff = 1 / (1/m_i + 1/m_j) (0 for two immovable particles): made
+  // at each neighbour rebuild (pairs_smeff_ cleared there), extended for pairs added since
+  // (broken bonds); masses do not change.
+  const double* im = ps_.inv_mass.data();
+  if (pair_smeff_.size() > pairs_.size()) pair_smeff_.clear();
+  for (std::size_t k = pair_smeff_.size(); k < pairs_.size(); ++k) {
+    const double s = im[pairs_[k].i] + im[pairs_[k].j];
+    pair_smeff_.push_back(s > 0.0 ? std::sqrt(1.0 / s) : 0.0);
+  }
+  return pair_smeff_.data();
+}
+
+template <class Tag>
+void Engine::pair_kernel_impl(const Tag& law) {
+  Vec3* __restrict f = ps_.f.data();
+  Vec3* __restrict t = ps_.torque.data();
+  const Vec3* x = ps_.x.data();
+  const Vec3* v = ps_.v.data();
+  const Vec3* w = ps_.omega.data();
+  const double* r = ps_.radius.data();
+  const double dt = history_dt_;
+  double worst = 0.0;
+  std::uint32_t wi = 0, wj = 0;
+  thread_local Block b;
+  const double* smeff = pair_smeff();
+  std::uint32_t apart[kBlock];
+  const std::size_t np = pairs_.size();
+  ContactPair* pairs = pairs_.data();
+  // The force and torque of the particle whose pairs are being scattered stay in registers
+  // while its pairs follow one another in the list (j != i in every pair, so no other write
+  // reaches them); the sums are the same, in the same order, as adding to memory each time.
+  constexpr std::uint32_t kNoParticle = 0xffffffffu;
+  std::uint32_t cur = kNoParticle;
+  Vec3 fcur = Vec3::Zero(), tcur = Vec3::Zero();
+  for (std::size_t p0 = 0; p0 < np; p0 += kBlock) {
+    const int len = static_cast<int>(std::min<std::size_t>(kBlock, np - p0));
+    // 1a. which pairs touch (no branches): touching pairs to b.pair, the others to apart
+    int m = 0, z = 0;
+    for (int q = 0; q < len; ++q) {
+      const ContactPair& p = pairs[p0 + q];
+      const std::uint32_t i = p.i, j = p.j;
+      const double rs = r[i] + r[j];
+      const bool touch = (x[j] - x[i]).squaredNorm() < rs * rs;
+      b.pair[m] = static_cast<std::uint32_t>(p0 + q);
+      m += touch ? 1 : 0;
+      apart[z] = static_cast<std::uint32_t>(p0 + q);
+      z += touch ? 0 : 1;
+    }
+    for (int k = 0; k < z; ++k) pairs[apart[k]].xi.setZero();  // contact over: the spring goes
+    // 1b. the touching pairs' state
+    for (int k = 0; k < m; ++k) {
+      const ContactPair& p = pairs[b.pair[k]];
+      const std::uint32_t i = p.i, j = p.j;
+      const Vec3 d = x[j] - x[i];
+      b.dx[k] = d.x(); b.dy[k] = d.y(); b.dz[k] = d.z();
+      b.ri[k] = r[i]; b.rj[k] = r[j]; b.smeff[k] = smeff[b.pair[k]];
+      const Vec3 dv = v[j] - v[i];
+      b.dvx[k] = dv.x(); b.dvy[k] = dv.y(); b.dvz[k] = dv.z();
+      b.wix[k] = w[i].x(); b.wiy[k] = w[i].y(); b.wiz[k] = w[i].z();
+      b.wjx[k] = w[j].x(); b.wjy[k] = w[j].y(); b.wjz[k] = w[j].z();
+      b.xix[k] = p.xi.x(); b.xiy[k] = p.xi.y(); b.xiz[k] = p.xi.z();
+    }
+    // 2. the law, all lanes alike
+    block_law(b, m, law, dt);
+    // 3. scatter in list order
+    for (int k = 0; k < m; ++k) {
+      ContactPair& p = pairs[b.pair[k]];
+      const std::uint32_t i = p.i, j = p.j;
+      p.xi = Vec3(b.xix[k], b.xiy[k], b.xiz[k]);
+      if (i != cur) {
+        if (cur != kNoParticle) {
+          f[cur] = fcur;
+          t[cur] = tcur;
+        }
+        cur = i;
+        fcur = f[i];
+        tcur = t[i];
+      }
+      const Vec3 F(b.fx[k], b.fy[k], b.fz[k]);
+      f[j] += F;
+      fcur -= F;
+      tcur -= Vec3(b.tix[k], b.tiy[k], b.tiz[k]);
+      t[j] += Vec3(b.tjx[k], b.tjy[k], b.tjz[k]);
+      const double rmin = std::min(b.ri[k], b.rj[k]);
+      if (b.delta[k] > worst * rmin) {  // overlap ratio delta / rmin > worst
+        worst = b.delta[k] / rmin;
+        wi = i;
+        wj = j;
+      }
+    }
+  }
+  if (cur != kNoParticle) {
+    f[cur] = fcur;
+    t[cur] = tcur;
+  }
+  if (worst > worst_overlap_ratio_) {
+    worst_overlap_ratio_ = worst;
+    worst_overlap_i_ = wi;
+    worst_overlap_j_ = wj;
+    worst_overlap_source_ = -1;
+  }
+}
+
+void Engine::pair_kernel(const LinearLaw& law) {
+  const LinearContactParams& p = law.p;
+  pair_kernel_impl(LinearTag{p.kn, p.kt, p.kt > 0.0 ? 1.0 / p.kt : 0.0, 2.0 * p.zeta_n * std::sqrt(p.kn), 2.0 * p.zeta_t * std::sqrt(p.kt), p.mu});
+}
+
+void Engine::pair_kernel(const HertzLaw& law) {
+  const HertzContactParams& p = law.p;
+  constexpr double c = 1.8257418583505538;  // 2 sqrt(5/6)
+  pair_kernel_impl(HertzTag{p.e_star, p.g_star, -c * p.beta, p.mu});
+}
+
+}  // namespace hs::bonded
