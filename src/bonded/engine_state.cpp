@@ -270,6 +270,7 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   // One system: every saved rank's owned particles, in rank order.
   ps_.truncate(0);
   ps_.n_owned = 0;
+  carried_exposure_.clear();
   ps_.n_ghost = 0;
   bonds_.clear();
   pairs_.clear();
@@ -296,6 +297,10 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
     if (rs.n_owned > x.size() || gid.size() != x.size())
       throw std::runtime_error("engine checkpoint: particle counts disagree");
     const auto f = a.get<Vec3>(p + "f"), t = a.get<Vec3>(p + "torque");
+    const auto exposure_kind = a.get<std::uint8_t>(p + "exposure_kind");
+    const auto exposure_area = a.get<std::array<double, 6>>(p + "exposure_area");
+    for (std::size_t i = 0; i < std::min<std::size_t>(rs.n_owned, exposure_kind.size()); ++i)
+      carried_exposure_[gid[i]] = ParticleExposure{static_cast<ParticleExposure::Kind>(exposure_kind[i]), exposure_area[i]};
     for (std::size_t i = 0; i < rs.n_owned; ++i) {
       ps_.push(ParticleRecord{x[i], v[i], w[i], q[i], radius[i], inv_mass[i], inv_inertia[i], mass[i], buoyant[i],
                               gid[i], material[i], flags[i], bond_count[i]});
@@ -380,7 +385,7 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   x_at_build_.assign(ps_.x.begin(), ps_.x.end());
   max_disp2_ = 0.0;
   need_rebuild_ = true;
-  forces_valid_ = true;
+  forces_valid_ = true;  // (that rebuild keeps the saved water exposure: build_neighbors)
 }
 
 }  // namespace hs::bonded

@@ -299,7 +299,7 @@ TEST(IsoInputs, ARidgeRunRecordsItsInputsAndTheReferenceScriptAgrees) {
     "time": {"duration": 0.02, "output_interval": 0.01},
     "material": {"particle_diameter": 0.5},
     "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
-    "water": {"linear_drag": 5},
+    "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 1.5, "length": 4, "width": 2, "origin": [0, -1]},
     "structure": {"type": "pier", "position": [-8.5, 0, 0], "velocity": [0.5, 0, 0]},
     "blocks": {"ridge_file": "run_keel.h5", "conversion": "never"}
@@ -321,8 +321,9 @@ TEST(IsoInputs, ARidgeRunRecordsItsInputsAndTheReferenceScriptAgrees) {
   EXPECT_NEAR(double_attribute(h5, in + "thickness", "value"), h4, 3e-13 * h4);  // as LatticeThicknessIsTheBuiltLayers
   EXPECT_EQ(string_attribute(h5, in + "thickness", "unit"), "m");
   EXPECT_EQ(string_attribute(h5, in + "rubble_height", "source"), "measured");
-  EXPECT_EQ(string_attribute(h5, in + "flexural_strength", "source"), "default");
-  EXPECT_EQ(string_attribute(h5, in + "youngs_modulus", "source"), "default");
+  // The scene's material is the default, "calibrated" model: ISO gets the lattice's E and strength.
+  EXPECT_EQ(string_attribute(h5, in + "flexural_strength", "source"), "calibrated");
+  EXPECT_EQ(string_attribute(h5, in + "youngs_modulus", "source"), "calibrated");
   EXPECT_GT(double_attribute(h5, "/analysis/iso", "F_K"), 0.0);
   // The independent script: inputs read back from the file, results recomputed (3e-15).
   const int rc = std::system(("/usr/bin/python3 " HYBRIDSIM_SOURCE_DIR "/tools/iso_reference.py --run '" +
