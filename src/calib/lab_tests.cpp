@@ -308,11 +308,14 @@ StripResult strip_test(const scene::Scene& s, double poisson_ratio, const LabOpt
   d.water.model = BuoyancyModel::Column;
   d.water.drag_coefficient = 0.0;
   d.water.current = Vec3::Zero();
-  // Heave damping ratio ~0.7 per particle, c = 1.4 sqrt(k_column m) with k_column = rho_w g V_cell / c,
-  // i.e. layers x c per column. The water's linear drag acts on the wetted faces only (water.h): the
-  // strip's bottom face, D^2 sqrt(3)/2 per column.
+  // Heave damping: the water's linear drag acts on wetted faces only (water.h), here the strip's
+  // bottom face, D^2 sqrt(3)/2 per column. Per column 0.3 x layers x 1.4 sqrt(k_column m), with
+  // k_column = rho_w g V_cell / c per particle: a damping ratio ~0.2 per column, so that the strip
+  // reaches its static deflection within the hold time. Measured on scenes/level_ice_cone.json
+  // (4 layers): L_c +0.36 % at this factor 0.3; +2.5 % at 0.1 (still ringing); +11 % at 1 and +32 % at
+  // 3 (overdamped, still creeping at the end).
   const double c_particle = 1.4 * std::sqrt(rho_w * g * hcp_cell_volume(D) / c * L.mass);
-  d.water.linear_drag_per_area = std::max(1.0, std::round(h / c)) * c_particle / (D * D * 0.5 * std::sqrt(3.0));
+  d.water.linear_drag_per_area = 0.3 * std::max(1.0, std::round(h / c)) * c_particle / (D * D * 0.5 * std::sqrt(3.0));
   Engine e(d);
   const double draft = flotation_draft(h, L.rho, rho_w);
   Pose pose;

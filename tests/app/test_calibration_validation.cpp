@@ -52,5 +52,5 @@ TEST(CalibrationValidation, SmallLatticeHasTheTargetIce) {
   EXPECT_NEAR(t.youngs_modulus / 1e7, 1.0, 0.03);         // measured 0.9968
   EXPECT_NEAR(t.poisson_ratio, 0.3, 0.03);                 // measured 0.3023
   EXPECT_NEAR(b.flexural_strength / 5e4, 1.0, 0.05);       // measured 1.0000 (+1e-5)
-  EXPECT_NEAR(st.characteristic_length / Lc, 1.0, 0.05);   // measured 1.0133
+  EXPECT_NEAR(st.characteristic_length / Lc, 1.0, 0.05);   // measured 1.0022 (1.0133 with per-particle heave damping before the one water)
 }
