@@ -80,17 +80,20 @@ int calibrate_command(const RunOptions& opt, std::ostream& out, std::FILE* progr
   const double Lc_target = characteristic_length(s.material.youngs_modulus, ci.thickness, rho_w, g, nu_t);
   const bool flex_target = ci.strength_source == "/material/flexural_strength";
   nlohmann::json j;
-  auto entry = [&](const char* key, double target, bool has_target, double measured) {
-    j[key] = {{"target", has_target ? nlohmann::json(target) : nlohmann::json(nullptr)}, {"measured", measured}};
+  // "measured" is null for a quantity whose test was not run (--tests).
+  auto entry = [&](const char* key, double target, bool has_target, double measured, bool ran) {
+    j[key] = {{"target", has_target ? nlohmann::json(target) : nlohmann::json(nullptr)},
+              {"measured", ran ? nlohmann::json(measured) : nlohmann::json(nullptr)}};
   };
-  entry("E", s.material.youngs_modulus, true, t.youngs_modulus);
-  entry("nu", nu_t, true, t.poisson_ratio);
+  const bool ran_t = wanted("tension"), ran_b = wanted("bending"), ran_s = wanted("strip");
+  entry("E", s.material.youngs_modulus, true, t.youngs_modulus, ran_t);
+  entry("nu", nu_t, true, t.poisson_ratio, ran_t);
   j["nu"]["reachable"] = !ci.poisson_clamped;
   j["nu"]["closest"] = ci.poisson_ratio;
   j["nu"]["range"] = {ci.poisson_min, ci.poisson_max};
-  entry("tensile_strength", ci.target_tensile_strength, ci.target_tensile_strength > 0, t.tensile_strength);
-  entry("flexural_strength", s.material.flexural_strength, flex_target, b.flexural_strength);
-  entry("characteristic_length", Lc_target, true, st.characteristic_length);
+  entry("tensile_strength", ci.target_tensile_strength, ci.target_tensile_strength > 0, t.tensile_strength, ran_t);
+  entry("flexural_strength", s.material.flexural_strength, flex_target, b.flexural_strength, ran_b);
+  entry("characteristic_length", Lc_target, true, st.characteristic_length, ran_s);
   j["model"] = ci.model;
   j["layers"] = ci.layers;
   j["thickness"] = ci.thickness;
@@ -112,15 +115,17 @@ int calibrate_command(const RunOptions& opt, std::ostream& out, std::FILE* progr
       << " m, D = " << fmt(s.material.particle_diameter) << " m), " << fmt(seconds) << " s\n";
   out << "  quantity                  target        measured      difference\n";
   auto row = [&](const std::string& name, const nlohmann::json& e, const std::string& unit, bool absolute) {
-    const double m = e["measured"].get<double>();
+    const bool ran = !e["measured"].is_null();
+    const double m = ran ? e["measured"].get<double>() : 0.0;
     std::string tgt = "-", diff = "-";
     if (!e["target"].is_null()) {
       const double tv = e["target"].get<double>();
       tgt = fmt(tv);
-      diff = absolute ? (m - tv >= 0 ? "+" : "") + fmt(m - tv) : (m >= tv ? "+" : "") + fmt(100.0 * (m / tv - 1.0)) + " %";
+      if (ran)
+        diff = absolute ? (m - tv >= 0 ? "+" : "") + fmt(m - tv) : (m >= tv ? "+" : "") + fmt(100.0 * (m / tv - 1.0)) + " %";
     }
     out << "  " << std::left << std::setw(26) << (name + " (" + unit + ")") << std::setw(14) << tgt << std::setw(14)
-        << fmt(m) << diff << "\n";
+        << (ran ? fmt(m) : std::string("not run")) << diff << "\n";
   };
   row("E", j["E"], "Pa", false);
   row("nu", j["nu"], "-", true);

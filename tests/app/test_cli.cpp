@@ -106,6 +106,19 @@ TEST(Cli, RunsATinySceneAndWritesTheFile) {
   EXPECT_LE(rows(work_dir() / "other.h5", "/series/time"), 4u);
 }
 
+TEST(Cli, CalibrateReportsTestsNotRunAsNotMeasured) {
+  // --tests bending: E, nu, tensile strength and L_c were not measured; the table says "not run" and
+  // the JSON has null for them (before: 0, printed as -100 %), the flexural strength a number.
+  const Result r = hybridsim("calibrate '" HYBRIDSIM_SOURCE_DIR "/scenes/level_ice_cone.json' --tests bending");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  EXPECT_NE(r.out.find("not run"), std::string::npos) << r.out;
+  const json j = json::parse(r.out.substr(r.out.find('{')));
+  for (const char* k : {"E", "nu", "tensile_strength", "characteristic_length"})
+    EXPECT_TRUE(j[k]["measured"].is_null()) << k << ": " << j[k];
+  // first bond failure of the calibrated lattice: the target 5e4 Pa (measured 5.00005e4)
+  EXPECT_NEAR(j["flexural_strength"]["measured"].get<double>(), 5e4, 5e2);
+}
+
 TEST(Cli, CheckPrintsDerivedFigures) {
   write("tiny.json", tiny().dump(2));
   const Result r = hybridsim("check tiny.json");
