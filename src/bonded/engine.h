@@ -363,7 +363,8 @@ class Engine {
   /// the union of the saved ranks' owned particles, bonds and friction history becomes one
   /// system, which this engine then spreads over its own ranks as distribute() does (collective;
   /// every rank passes the same `all`). Forces are evaluated afresh at the first step, the
-  /// neighbour lists rebuilt: the same physics, summed in another order (round-off only).
+  /// neighbour lists rebuilt: the same physics, summed in another order (and later neighbour
+  /// rebuilds, hence water-exposure updates, on other steps: docs/output.md "Checkpoints").
   void load_state_union(const std::vector<StateArchive>& all, const std::string& prefix);
 
   /// Forces for the current state without advancing anything: tangential springs are
@@ -374,6 +375,8 @@ class Engine {
   }
 
  private:
+  /// The mesh walls' positions and last loads from a checkpoint (load_state, load_state_union).
+  void load_mesh_poses_and_loads(const StateArchive& a, const std::string& prefix);
   /// Forces at the current state; tangential springs advance by v_t * history_dt.
   /// finish = false: the caller reduces the loads itself (finish_forces) after the kick.
   void evaluate_forces(double history_dt, bool finish = true);

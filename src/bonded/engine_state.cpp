@@ -167,6 +167,26 @@ void Engine::save_state(StateArchive& a, const std::string& p) const {
   a.put(p + "carried_history", carried);
 }
 
+void Engine::load_mesh_poses_and_loads(const StateArchive& a, const std::string& p) {
+  const auto mesh_pos = a.get<Vec3>(p + "mesh_position");
+  const auto mesh_loads = a.get<Vec3>(p + "mesh_loads");
+  const auto mesh_contacts = a.get<std::uint64_t>(p + "mesh_contacts");
+  if (mesh_pos.size() != meshes_.size()) throw std::runtime_error("engine checkpoint: another number of mesh walls");
+  std::size_t o = 0;  // per mesh: force, moment, then its parts' forces and moments
+  for (std::size_t k = 0; k < meshes_.size(); ++k) {
+    MeshWall& m = meshes_[k];
+    m.position = mesh_pos[k];
+    const std::size_t np = m.load.part_force.size();
+    if (o + 2 + 2 * np > mesh_loads.size()) throw std::runtime_error("engine checkpoint: mesh loads truncated");
+    m.load.force = mesh_loads[o];
+    m.load.moment = mesh_loads[o + 1];
+    std::copy(mesh_loads.begin() + o + 2, mesh_loads.begin() + o + 2 + np, m.load.part_force.begin());
+    std::copy(mesh_loads.begin() + o + 2 + np, mesh_loads.begin() + o + 2 + 2 * np, m.load.part_moment.begin());
+    o += 2 + 2 * np;
+    m.load.contacts = mesh_contacts.at(k);
+  }
+}
+
 void Engine::load_state(const StateArchive& a, const std::string& p) {
   const auto sc = a.get_value<EngineScalars>(p + "scalars");
   const auto dims = a.get<int>(p + "dims");
@@ -206,24 +226,11 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
   for (std::size_t k = 0; k < walls_.size(); ++k) walls_[k].point = wall_points[k];
   a.get_into(p + "wall_force", wall_force_);
   wall_hist_ = get_nested<Vec3>(a, p + "wall_history");
-  const auto mesh_pos = a.get<Vec3>(p + "mesh_position");
-  const auto mesh_loads = a.get<Vec3>(p + "mesh_loads");
-  const auto mesh_contacts = a.get<std::uint64_t>(p + "mesh_contacts");
+  load_mesh_poses_and_loads(a, p);
   const auto mesh_hist = get_nested<MeshHistoryRecord>(a, p + "mesh_history");
-  if (mesh_pos.size() != meshes_.size() || mesh_hist.size() != meshes_.size())
-    throw std::runtime_error("engine checkpoint: another number of mesh walls");
-  std::size_t o = 0;
+  if (mesh_hist.size() != meshes_.size()) throw std::runtime_error("engine checkpoint: another number of mesh walls");
   for (std::size_t k = 0; k < meshes_.size(); ++k) {
     MeshWall& m = meshes_[k];
-    m.position = mesh_pos[k];
-    const std::size_t np = m.load.part_force.size();
-    if (o + 2 + 2 * np > mesh_loads.size()) throw std::runtime_error("engine checkpoint: mesh loads truncated");
-    m.load.force = mesh_loads[o];
-    m.load.moment = mesh_loads[o + 1];
-    std::copy(mesh_loads.begin() + o + 2, mesh_loads.begin() + o + 2 + np, m.load.part_force.begin());
-    std::copy(mesh_loads.begin() + o + 2 + np, mesh_loads.begin() + o + 2 + 2 * np, m.load.part_moment.begin());
-    o += 2 + 2 * np;
-    m.load.contacts = mesh_contacts.at(k);
     m.history.clear();
     m.next_history.clear();
     for (const auto& r : mesh_hist[k]) m.history.emplace(MeshWall::Key{r.gid, r.feature}, r.xi);
@@ -339,22 +346,7 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   const auto wall_points = a0.get<Vec3>(p + "wall_points");
   for (std::size_t k = 0; k < walls_.size(); ++k) walls_[k].point = wall_points.at(k);
   a0.get_into(p + "wall_force", wall_force_);
-  const auto mesh_pos = a0.get<Vec3>(p + "mesh_position");
-  const auto mesh_loads = a0.get<Vec3>(p + "mesh_loads");
-  const auto mesh_contacts = a0.get<std::uint64_t>(p + "mesh_contacts");
-  std::size_t o = 0;
-  for (std::size_t k = 0; k < meshes_.size(); ++k) {
-    MeshWall& m = meshes_[k];
-    m.position = mesh_pos.at(k);
-    const std::size_t np = m.load.part_force.size();
-    if (o + 2 + 2 * np > mesh_loads.size()) throw std::runtime_error("engine checkpoint: mesh loads truncated");
-    m.load.force = mesh_loads[o];
-    m.load.moment = mesh_loads[o + 1];
-    std::copy(mesh_loads.begin() + o + 2, mesh_loads.begin() + o + 2 + np, m.load.part_force.begin());
-    std::copy(mesh_loads.begin() + o + 2 + np, mesh_loads.begin() + o + 2 + 2 * np, m.load.part_moment.begin());
-    o += 2 + 2 * np;
-    m.load.contacts = mesh_contacts.at(k);
-  }
+  load_mesh_poses_and_loads(a0, p);
   stats_ = a0.get_value<StepStats>(p + "stats");
   pstats_ = ParallelStats{};
   dt_ = sc.dt;
