@@ -308,8 +308,8 @@ void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint
 void Engine::build_neighbors() {
   build_pair_list();
   if (!carried_exposure_.empty()) {
-    // The rebuild that follows a restart at another rank count (load_state_union) is not one of
-    // the run's own: the exposure stays as of the run's last rebuild, by particle.
+    // The rebuild of a restart at another rank count (load_state_union, at the positions of the
+    // run's last rebuild) is not one of the run's own: the exposure stays as of that rebuild.
     exposure_.resize(ps_.n_owned);
     for (std::size_t i = 0; i < ps_.n_owned; ++i) exposure_[i] = carried_exposure_.at(ps_.gid[i]);
     carried_exposure_.clear();

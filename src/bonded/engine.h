@@ -478,8 +478,8 @@ class Engine {
   std::vector<MeshWall> meshes_;
   std::vector<ForceSource*> sources_;
   std::vector<ParticleExposure> exposure_;  ///< per owned particle, from the last rebuild
-  /// After load_state_union: every particle's exposure by id (the whole system on every rank, so
-  /// all ranks skip update_exposure alike), used by the first rebuild that follows.
+  /// In load_state_union: every particle's exposure by id (the whole system on every rank, so
+  /// all ranks skip update_exposure alike), used by the restart's own rebuild.
   std::unordered_map<GlobalId, ParticleExposure> carried_exposure_;
   std::vector<Vec3> exposure_sum_, exposure_reach_pos_, exposure_reach_neg_;  ///< scratch of update_exposure (owned + ghosts)
   std::vector<std::uint32_t> exposure_count_;

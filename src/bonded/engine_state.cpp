@@ -291,6 +291,12 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   // The forces of the last step travel with their particles: evaluated again they would see the
   // rigid blocks where the next step puts them, not where the last step had them.
   std::unordered_map<GlobalId, std::pair<Vec3, Vec3>> force_of;
+  // The positions at the last neighbour rebuild, by id: the restart rebuilds there (below), so
+  // that the run's later rebuilds, and the water exposure that changes only at rebuilds, fall on
+  // the steps of the run that was never stopped. Only where every saved rank's lists were
+  // current (no rebuild due at the next step: then that rebuild is the run's own, as saved).
+  std::unordered_map<GlobalId, Vec3> x_build_of;
+  bool keep_schedule = true;
   for (const StateArchive& a : all) {
     const auto rs = a.get_value<EngineScalars>(p + "scalars");
     const auto x = a.get<Vec3>(p + "x"), v = a.get<Vec3>(p + "v"), w = a.get<Vec3>(p + "omega");
@@ -306,8 +312,14 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
     const auto f = a.get<Vec3>(p + "f"), t = a.get<Vec3>(p + "torque");
     const auto exposure_kind = a.get<std::uint8_t>(p + "exposure_kind");
     const auto exposure_area = a.get<std::array<double, 6>>(p + "exposure_area");
-    for (std::size_t i = 0; i < std::min<std::size_t>(rs.n_owned, exposure_kind.size()); ++i)
+    const auto x_at_build = a.get<Vec3>(p + "x_at_build");
+    if (rs.need_rebuild != 0 || x_at_build.size() != x.size() || exposure_kind.size() < rs.n_owned ||
+        exposure_area.size() != exposure_kind.size())
+      keep_schedule = false;
+    for (std::size_t i = 0; keep_schedule && i < rs.n_owned; ++i) {
       carried_exposure_[gid[i]] = ParticleExposure{static_cast<ParticleExposure::Kind>(exposure_kind[i]), exposure_area[i]};
+      x_build_of[gid[i]] = x_at_build[i];
+    }
     for (std::size_t i = 0; i < rs.n_owned; ++i) {
       ps_.push(ParticleRecord{x[i], v[i], w[i], q[i], radius[i], inv_mass[i], inv_inertia[i], mass[i], buoyant[i],
                               gid[i], material[i], flags[i], bond_count[i]});
@@ -361,6 +373,23 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   ghost_send_.clear();
   ghost_start_.clear();
   ghost_n_.clear();
+  // Rebuilding at the saved positions of the last rebuild: every rank owns, sees as ghosts and
+  // pairs what it would have at that rebuild (the same pairs as the saved run: those within
+  // r_i + r_j + skin then), and x_at_build_ is what the displacement trigger of the saved run
+  // compares with (a global maximum: every rank count rebuilds on the same steps). Then the
+  // positions of the checkpoint's step go back in, ghosts included.
+  if (!keep_schedule) {
+    carried_exposure_.clear();
+    x_build_of.clear();
+  }
+  std::unordered_map<GlobalId, Vec3> x_now;
+  if (keep_schedule) {
+    x_now.reserve(ps_.size());
+    for (std::size_t i = 0; i < ps_.size(); ++i) {
+      x_now.emplace(ps_.gid[i], ps_.x[i]);
+      ps_.x[i] = x_build_of.at(ps_.gid[i]);
+    }
+  }
   if (comm_->parallel()) {  // every rank holds the whole system: spread it as a fresh build is
     distributed_ = false;
     const par::Comm& c = *comm_;
@@ -368,16 +397,21 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   } else {
     distributed_ = false;
   }
+  if (keep_schedule) {
+    build_neighbors();               // keeps the saved water exposure (carried_exposure_)
+    --stats_.neighbor_rebuilds;      // not one of the run's own
+    for (std::size_t i = 0; i < ps_.size(); ++i) ps_.x[i] = x_now.at(ps_.gid[i]);
+  } else {  // the first step rebuilds the neighbour lists (and ghosts), as the saved run's would
+    x_at_build_.assign(ps_.x.begin(), ps_.x.end());
+    need_rebuild_ = true;
+  }
   for (std::size_t i = 0; i < ps_.owned(); ++i) {
     const auto& ft = force_of.at(ps_.gid[i]);
     ps_.f[i] = ft.first;
     ps_.torque[i] = ft.second;
   }
-  // The first step kicks with those forces and rebuilds the neighbour lists (and ghosts) first.
-  x_at_build_.assign(ps_.x.begin(), ps_.x.end());
   max_disp2_ = 0.0;
-  need_rebuild_ = true;
-  forces_valid_ = true;  // (that rebuild keeps the saved water exposure: build_neighbors)
+  forces_valid_ = true;  // the first step kicks with those forces
 }
 
 }  // namespace hs::bonded
