@@ -362,9 +362,11 @@ class Engine {
   /// Restores a checkpoint written at another rank count (`all`: every saved rank's archive):
   /// the union of the saved ranks' owned particles, bonds and friction history becomes one
   /// system, which this engine then spreads over its own ranks as distribute() does (collective;
-  /// every rank passes the same `all`). Forces are evaluated afresh at the first step, the
-  /// neighbour lists rebuilt: the same physics, summed in another order (and later neighbour
-  /// rebuilds, hence water-exposure updates, on other steps: docs/output.md "Checkpoints").
+  /// every rank passes the same `all`). The forces of the last step are carried by particle; the
+  /// neighbour lists are rebuilt at the saved positions of the last rebuild (then the current
+  /// positions restored), so later rebuilds, hence water-exposure updates, fall on the saved
+  /// run's steps: the same physics to round-off, summed in another order (docs/output.md
+  /// "Checkpoints").
   void load_state_union(const std::vector<StateArchive>& all, const std::string& prefix);
 
   /// Forces for the current state without advancing anything: tangential springs are
