@@ -22,7 +22,7 @@ namespace {
 const std::map<std::string, std::vector<std::string>>& schema_keys() {
   static const std::map<std::string, std::vector<std::string>> k = {
       {"", {"name", "description", "output", "time", "material", "bonds", "water", "gravity", "ice", "walls",
-            "structure", "analysis", "stability", "parallel", "blocks"}},
+            "structure", "analysis", "stability", "parallel", "blocks", "ridge"}},
       {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval", "checkpoint_interval"}},
       {"/material",
        {"density", "youngs_modulus", "poisson_ratio", "particle_diameter", "restitution", "friction",
