@@ -57,9 +57,10 @@ void take_run_ice(rigid::RidgeDef& def, const nlohmann::json& rj, const scene::S
   };
   const bool cl = s.ice.has_consolidated_layer;
   const std::vector<Pair> pairs = {
-      {"ice_density", s.blocks.density > 0.0 ? "/blocks/density" : "/material/density", from_scene.ice_density},
+      {"ice_density", sim::scene_sets(s, "/blocks/density") ? "/blocks/density" : "/material/density",
+       from_scene.ice_density},
       {"water_density", "/water/density", from_scene.water_density},
-      {"settle/friction", s.blocks.friction >= 0.0 ? "/blocks/friction" : "/material/friction",
+      {"settle/friction", sim::scene_sets(s, "/blocks/friction") ? "/blocks/friction" : "/material/friction",
        from_scene.settle.friction},
       {"level_ice_thickness", "/ice/thickness", from_scene.level_ice_thickness},
       {"consolidated_layer_thickness", cl ? "/ice/consolidated_layer/thickness" : "/ice/thickness (no consolidated layer)",

@@ -301,6 +301,7 @@ RidgeResult load_ridge(const std::string& path) {
     if (sheet.floating) {
       sheet.particle_diameter = sh.at("particle_diameter").get<double>();
       sheet.plate_width = sh.at("plate_width").get<double>();
+      sheet.plates_joined = sh.at("plates_joined").get<bool>();
       sheet.level_top = sh.at("level_ice").at("top_z").get<double>();
       sheet.level_underside = sh.at("level_ice").at("underside_z").get<double>();
       sheet.layer_top = sh.at("consolidated_layer").at("top_z").get<double>();

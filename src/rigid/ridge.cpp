@@ -741,6 +741,21 @@ std::vector<BlockId> build_settle_world(RigidWorld& world, const RidgeRun& run, 
     }
     ice_ids.push_back(world.add_block(bd));
   }
+  if (d.sheet.floating && d.sheet.plates_joined) {
+    // Fixed joints between neighbours (the settle world's joints never break: its strength is
+    // infinite), anchored at the middle of their common edge.
+    for (std::size_t k = 0; k + 1 < ice.size(); ++k) {
+      FreezeJointDef j;
+      j.a = ice_ids[k];
+      j.b = ice_ids[k + 1];
+      j.anchor = Vec3(0.5 * (ice[k].position.x() + ice[k].half_extents.x() + ice[k + 1].position.x() -
+                             ice[k + 1].half_extents.x()),
+                      ice[k].position.y(), std::min(ice[k].position.z(), ice[k + 1].position.z()));
+      j.normal = Vec3::UnitX();
+      j.area = 1.0;
+      world.add_freeze_joint(j);
+    }
+  }
   if (d.end_walls) {
     for (int s = 0; s < 2; ++s) {
       BlockDef bd;
@@ -778,7 +793,7 @@ RigidWorldDef settle_world_def(const RidgeDef& d) {
   wd.allow_sleep = d.settle.allow_sleep;
   wd.sleep_linear_velocity = 0.02;
   wd.sleep_angular_velocity = 0.02;
-  wd.freeze_bond_strength = 0.0;
+  wd.freeze_bond_strength = std::numeric_limits<double>::infinity();  // the plates' joints hold
   return wd;
 }
 
@@ -1216,7 +1231,7 @@ const std::vector<std::string>& ridge_keys() {
       "ice_density", "water_density", "keel_depth", "keel_width", "shoulder_slope_deg", "keel_profile_csv",
       "keel_profile", "sail_height", "sail_width", "sail_slope_deg", "length", "end_walls", "block_thickness",
       "aspect_lognormal", "block_width_fraction", "max_tilt_deg", "fill_porosity", "placement_candidates", "seed",
-      "settle", "joints", "profile_bin", "porosity_grid", "plate_width"};
+      "settle", "joints", "profile_bin", "porosity_grid", "plate_width", "plates_joined"};
   return k;
 }
 
@@ -1342,6 +1357,7 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
   d.porosity_grid = r.number("porosity_grid", d.porosity_grid, Range::any(), "m", "e.g. 0.25");
   d.sheet.plate_width = r.number("plate_width", d.sheet.plate_width, Range::any(), "m",
                                  "x width of the floating plate strips (ridges of a run scene), 0 for one plate per part");
+  d.sheet.plates_joined = r.boolean("plates_joined", d.sheet.plates_joined);
   validate(d, P);
   return d;
 }
@@ -1396,6 +1412,7 @@ nlohmann::json ridge_def_to_json(const RidgeDef& d) {
   j["profile_bin"] = d.profile_bin;
   j["porosity_grid"] = d.porosity_grid;
   j["plate_width"] = d.sheet.plate_width;
+  j["plates_joined"] = d.sheet.plates_joined;
   return j;
 }
 
@@ -1423,6 +1440,7 @@ nlohmann::json ridge_generation_json(const RidgeResult& r) {
     j["sheet"] = {{"kind", "floating"},
                   {"particle_diameter", d.sheet.particle_diameter},
                   {"plate_width", d.sheet.plate_width},
+                  {"plates_joined", d.sheet.plates_joined},
                   {"level_ice", {{"top_z", d.sheet.level_top}, {"underside_z", d.sheet.level_underside}}},
                   {"consolidated_layer", {{"top_z", d.sheet.layer_top}, {"underside_z", d.sheet.layer_underside}}}};
   }

@@ -104,6 +104,10 @@ struct RidgeSheet {
   /// (level ice | consolidated layer | level ice). Narrow strips have no bending stiffness
   /// between them: a sail sinks its own strips (docs/ridge.md, "Floating plates").
   double plate_width = 0.0;
+  /// Neighbouring plates joined rigidly (unbreakable fixed joints at their common edges): the
+  /// sheet heaves as one body, as the run's bonded lattice is one piece. false: each plate
+  /// heaves on its own (no bending stiffness: a sail pushes its plate under, docs/ridge.md).
+  bool plates_joined = true;
 };
 
 struct RidgeDef {

@@ -36,6 +36,9 @@ SheetGeometry sheet_geometry(const scene::Scene& s);
 /// sheet_geometry. Call it after reading the ridge section.
 void apply_run_scene(rigid::RidgeDef& def, const scene::Scene& s);
 
+/// Whether the scene file itself sets the value at the JSON pointer (not a default).
+bool scene_sets(const scene::Scene& s, const char* pointer);
+
 /// Throws hs::InputError("/blocks/ridge_file", ...) unless the ridge file `path` was generated
 /// with this scene's ice: every mismatching field named with the scene's and the file's value,
 /// and the fix (`hybridsim ridge <scene>`).
