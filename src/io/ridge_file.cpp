@@ -306,6 +306,7 @@ RidgeResult load_ridge(const std::string& path) {
       sheet.level_underside = sh.at("level_ice").at("underside_z").get<double>();
       sheet.layer_top = sh.at("consolidated_layer").at("top_z").get<double>();
       sheet.layer_underside = sh.at("consolidated_layer").at("underside_z").get<double>();
+      sheet.layer_width = sh.at("consolidated_layer").at("width").get<double>();
     }
   } catch (const nlohmann::json::exception& e) {
     throw InputError(path, std::string("bad ridge attributes: ") + e.what());

@@ -282,15 +282,20 @@ std::vector<double> sample_log_aspect(const AspectLognormal& a, std::size_t n, s
   return out;
 }
 
+/// Half width of the consolidated layer's contact surface (the run's particles with a floating sheet).
+static double layer_half_width(const RidgeDef& d) {
+  return 0.5 * (d.sheet.floating && d.consolidated_layer_width > 0.0 ? d.sheet.layer_width : d.consolidated_layer_width);
+}
+
 double ice_draft(const RidgeDef& d, double x) {
-  const bool in_layer = std::abs(x) < 0.5 * d.consolidated_layer_width;
+  const bool in_layer = std::abs(x) < layer_half_width(d);
   if (d.sheet.floating) return -(in_layer ? d.sheet.layer_underside : d.sheet.level_underside);
   const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
                                                                   : d.level_ice_thickness;
   return flotation_draft(t, d.ice_density, d.water_density);
 }
 double ice_freeboard(const RidgeDef& d, double x) {
-  const bool in_layer = std::abs(x) < 0.5 * d.consolidated_layer_width;
+  const bool in_layer = std::abs(x) < layer_half_width(d);
   if (d.sheet.floating) return in_layer ? d.sheet.layer_top : d.sheet.level_top;
   const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
                                                                   : d.level_ice_thickness;
@@ -509,7 +514,7 @@ void add_ice_sheet(RidgeRun& run, std::vector<IceBox>& ice) {
   run.kx = keel_half_width(d);
   run.sx = sail_half_width(d);
   run.ice_half = std::max(run.kx, run.sx) + d.level_ice_margin;
-  run.wcl = std::min(d.consolidated_layer_width, 2.0 * run.ice_half);
+  run.wcl = std::min(2.0 * layer_half_width(d), 2.0 * run.ice_half);
   if (d.sheet.floating) {
     auto plates = [&](double x0, double x1, int part) {
       if (x1 - x0 <= 0.0) return;
@@ -1442,7 +1447,8 @@ nlohmann::json ridge_generation_json(const RidgeResult& r) {
                   {"plate_width", d.sheet.plate_width},
                   {"plates_joined", d.sheet.plates_joined},
                   {"level_ice", {{"top_z", d.sheet.level_top}, {"underside_z", d.sheet.level_underside}}},
-                  {"consolidated_layer", {{"top_z", d.sheet.layer_top}, {"underside_z", d.sheet.layer_underside}}}};
+                  {"consolidated_layer",
+                   {{"top_z", d.sheet.layer_top}, {"underside_z", d.sheet.layer_underside}, {"width", d.sheet.layer_width}}}};
   }
   nlohmann::json plates = nlohmann::json::array();
   if (d.sheet.floating)

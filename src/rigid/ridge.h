@@ -98,6 +98,9 @@ struct RidgeSheet {
   bool floating = false;
   double level_top = 0.0, level_underside = 0.0;  ///< z at rest, level ice, m
   double layer_top = 0.0, layer_underside = 0.0;  ///< z at rest, consolidated layer, m
+  /// x extent of the consolidated layer's particles, m: the band's width plus one particle
+  /// diameter (the spheres whose centres lie in the band reach D/2 beyond it).
+  double layer_width = 0.0;
   double particle_diameter = 0.0;                 ///< D of the run's sheet (record only), m
   double consolidated_layer_center_x = 0.0;       ///< the run scene's centre (record only), m
   /// m, x width of the plate strips each part is cut into; 0 (default): one plate per part

@@ -69,6 +69,7 @@ void apply_run_scene(rigid::RidgeDef& d, const scene::Scene& s) {
   d.sheet.layer_top = g.layer_top;
   d.sheet.layer_underside = g.layer_underside;
   d.sheet.particle_diameter = g.D;
+  d.sheet.layer_width = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.width + g.D : 0.0;
   d.sheet.consolidated_layer_center_x = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.center_x : 0.0;
 }
 
@@ -113,7 +114,8 @@ void check_ridge_generation(const rigid::RidgeResult& r, const scene::Scene& s, 
       std::abs(want.sheet.level_top - got.sheet.level_top) > 1e-9 ||
       std::abs(want.sheet.level_underside - got.sheet.level_underside) > 1e-9 ||
       std::abs(want.sheet.layer_top - got.sheet.layer_top) > 1e-9 ||
-      std::abs(want.sheet.layer_underside - got.sheet.layer_underside) > 1e-9;
+      std::abs(want.sheet.layer_underside - got.sheet.layer_underside) > 1e-9 ||
+      std::abs(want.sheet.layer_width - got.sheet.layer_width) > 1e-9;
   // The sheet follows from density, water and thickness: named on its own only when none of
   // those differs (the particle diameter or the water level then moved it).
   if (sheet_differs && bad.empty())
