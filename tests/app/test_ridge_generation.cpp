@@ -102,6 +102,14 @@ TEST(RidgeGeneration, TheSheetFunctionIsWhereTheRunPutsItsParticles) {
   EXPECT_NEAR(cl_lo, g.layer_underside, 1e-12);
   EXPECT_NEAR(cl_hi, g.layer_top, 1e-12);
   EXPECT_LT(g.layer_underside, g.level_underside - c);  // the layer hangs lower
+  // The layer's spheres reach D/2 beyond its band: the generator's layer plate is that wide.
+  double reach = 0.0;
+  for (std::size_t i = 0; i < P.size(); ++i)
+    if (P.x[i].z() < g.level_underside) reach = std::max(reach, std::abs(P.x[i].x()) + 0.5 * D);
+  hs::rigid::RidgeDef d;
+  hs::sim::apply_run_scene(d, s);
+  EXPECT_GT(reach, 1.0 + 0.25 * D);  // beyond the band's 1 m half width
+  EXPECT_LE(reach, 0.5 * d.sheet.layer_width + 1e-12);
   // A free plate of those contact surfaces floats there (plate_density) with the draft of the
   // sheet: its buoyancy per area at rest, rho_w (-underside), is the lattice's rho_i h plus the
   // water of the half-layer between the box bottom and the contact surface.
