@@ -87,8 +87,12 @@ int main(int argc, char** argv) {
   CLI::App* ridge = app.add_subcommand("ridge", "build a ridge (rigid blocks rise and settle under the ice), "
                                                "save it to HDF5 and print its report (docs/ridge.md)");
   std::string ridge_scene, ridge_out;
-  ridge->add_option("scene", ridge_scene, "ridge scene file (JSON with a \"ridge\" object)")->required();
-  ridge->add_option("-o,--output", ridge_out, "output HDF5 file (default: <name>_ridge.h5)");
+  ridge->add_option("scene", ridge_scene,
+                    "ridge scene file (JSON with a \"ridge\" object), or a run scene with a \"ridge\" section: "
+                    "then generated with the run's ice under its floating sheet (docs/ridge.md)")
+      ->required();
+  ridge->add_option("-o,--output", ridge_out,
+                    "output HDF5 file (default: a run scene's blocks.ridge_file, else <name>_ridge.h5)");
   ridge->add_flag("--ignore-memory-limit", opt.ignore_memory_limit,
                   "generate even when the estimated block count exceeds the machine's available memory");
   CLI::App* calibrate = app.add_subcommand("calibrate", "virtual lab tests (tension, 3-point bending, floating "

@@ -3,14 +3,19 @@
 #include "app/output_path.h"
 #include "common/error.h"
 #include "json/reader.h"
+#include "scene/scene.h"
 #include "sim/build.h"
+#include "sim/ridge_sheet.h"
 #include "rigid/ridge.h"
 #include "io/ridge_file.h"
 #include "io/run_file.h"
 
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <cstdio>
+#include <optional>
+#include <vector>
 #include <filesystem>
 #include <stdexcept>
 #include <system_error>
@@ -18,21 +23,138 @@
 
 namespace hs::app {
 
+namespace {
+
+/// The ridge definition of a scene: the "ridge" object, or the JSON file a "ridge" string names
+/// (relative to the scene; its errors name the file). Returns the JSON and the directory that
+/// relative paths inside it (keel_profile_csv) are resolved against.
+nlohmann::json ridge_json(const JsonObject& root, const std::string& base, std::string& ridge_base,
+                          std::string& where) {
+  const nlohmann::json& v = root.raw("ridge");
+  ridge_base = base;
+  where = "";
+  if (!v.is_string()) return v;
+  std::filesystem::path p(v.get<std::string>());
+  if (p.is_relative() && !base.empty()) p = std::filesystem::path(base) / p;
+  where = p.string();
+  ridge_base = p.parent_path().string();
+  try {
+    return read_json_file(where, "ridge definition file (named by /ridge)");
+  } catch (const InputError& e) {
+    throw InputError("/ridge", e.what());
+  }
+}
+
+/// A run scene's ridge: its ice from the scene (sim::apply_run_scene). A value the ridge
+/// section sets itself must agree with the scene's: the ridge is generated with the run's ice.
+void take_run_ice(rigid::RidgeDef& def, const nlohmann::json& rj, const scene::Scene& s, const std::string& where) {
+  rigid::RidgeDef from_scene = def;
+  sim::apply_run_scene(from_scene, s);
+  struct Pair {
+    const char* ridge_key;  ///< "a" or "a/b"
+    std::string scene_path;
+    double scene_value;
+  };
+  const bool cl = s.ice.has_consolidated_layer;
+  const std::vector<Pair> pairs = {
+      {"ice_density", sim::scene_sets(s, "/blocks/density") ? "/blocks/density" : "/material/density",
+       from_scene.ice_density},
+      {"water_density", "/water/density", from_scene.water_density},
+      {"settle/friction", sim::scene_sets(s, "/blocks/friction") ? "/blocks/friction" : "/material/friction",
+       from_scene.settle.friction},
+      {"level_ice_thickness", "/ice/thickness", from_scene.level_ice_thickness},
+      {"consolidated_layer_thickness", cl ? "/ice/consolidated_layer/thickness" : "/ice/thickness (no consolidated layer)",
+       from_scene.consolidated_layer_thickness},
+      {"consolidated_layer_width", cl ? "/ice/consolidated_layer/width" : "/ice/consolidated_layer (absent: width 0)",
+       from_scene.consolidated_layer_width},
+  };
+  for (const Pair& p : pairs) {
+    const nlohmann::json::json_pointer ptr(std::string("/") + p.ridge_key);
+    if (!rj.contains(ptr) || rj.at(ptr).is_null()) continue;
+    const nlohmann::json& v = rj.at(ptr);
+    if (!v.is_number()) continue;  // ridge_def_from_json has refused it already
+    const double x = v.get<double>();
+    if (std::abs(x - p.scene_value) <= 1e-12 * std::max(1.0, std::abs(x))) continue;
+    throw InputError(std::string("/ridge/") + p.ridge_key,
+                     (where.empty() ? std::string() : "(in " + where + ") ") + json_fmt(x) + " differs from " +
+                         p.scene_path + " = " + json_fmt(p.scene_value) +
+                         ": a ridge generated from a run scene uses the run's ice; remove /ridge/" + p.ridge_key +
+                         " (the scene's value is taken) or make the two equal");
+  }
+  if (cl && std::abs(s.ice.consolidated_layer.center_x - s.blocks.offset.x()) > 1e-12)
+    throw InputError("/ice/consolidated_layer/center_x",
+                     json_fmt(s.ice.consolidated_layer.center_x) + " m, but the ridge's axis (x = 0 in the ridge "
+                     "file) lands at /blocks/offset/0 = " + json_fmt(s.blocks.offset.x()) +
+                     " m: the keel must sit under the consolidated layer; make them equal");
+  def = from_scene;
+}
+
+}  // namespace
+
 int ridge_command(const std::string& scene_path, const std::string& output, std::ostream& out,
                   bool ignore_memory_limit) {
   const nlohmann::json j = read_json_file(scene_path, "ridge scene file");
-  const JsonObject root(j, "", {"name", "description", "ridge"},
-                        "a ridge scene is {\"name\": ..., \"ridge\": {...}}, see docs/ridge.md");
-  if (!root.has("ridge")) root.missing("ridge", "the ridge definition, see docs/ridge.md");
-  const std::string name = root.string("name", std::filesystem::path(scene_path).stem().string(), false,
-                                       "the scene name, e.g. \"ridge_keel_8m\"");
-  root.string("description", "", false, "free text");
   const std::string base = std::filesystem::path(scene_path).parent_path().string();
-  const rigid::RidgeDef def = rigid::ridge_def_from_json(root.raw("ridge"), root.at("ridge"), base);
+  // A standalone ridge scene has only name, description and ridge; anything else makes it a
+  // run scene whose ice the ridge is generated with (docs/ridge.md, "From a run scene").
+  bool run_scene = false;
+  for (const auto& [k, v] : j.items())
+    if (k != "name" && k != "description" && k != "ridge") run_scene = true;
+  std::optional<scene::Scene> scene;
+  std::string path = output;
+  if (run_scene) {
+    if (!j.contains("ridge"))
+      throw InputError("/ridge", "missing: a run scene given to `hybridsim ridge` needs a \"ridge\" section (the "
+                                 "ridge definition or the path of a JSON file holding it, docs/ridge.md)");
+    // The scene's blocks.ridge_file is what this command makes: parse the scene without it
+    // (one placeholder block keeps the blocks section valid), then take the path.
+    nlohmann::json js = j;
+    std::string ridge_file;
+    if (js.contains("blocks") && js["blocks"].is_object() && js["blocks"].contains("ridge_file") &&
+        js["blocks"]["ridge_file"].is_string()) {
+      ridge_file = js["blocks"]["ridge_file"].get<std::string>();
+      js["blocks"].erase("ridge_file");
+      js["blocks"]["list"] = nlohmann::json::array({{{"half_extents", {0.1, 0.1, 0.1}}, {"position", {0, 0, -50}}}});
+    }
+    scene = scene::parse_scene(js, base);
+    if (path.empty()) {
+      if (ridge_file.empty())
+        throw InputError("/blocks/ridge_file", "missing: where should the ridge go? Give blocks.ridge_file (relative "
+                                               "to the scene) or -o <file>");
+      std::filesystem::path fp(ridge_file);
+      path = fp.is_absolute() || base.empty() ? fp.string() : (std::filesystem::path(base) / fp).string();
+    }
+  }
+  std::vector<std::string> keys = {"name", "description", "ridge"};
+  if (run_scene)
+    for (const auto& [k, v] : j.items()) keys.push_back(k);  // parse_scene has checked them
+  const JsonObject root(j, "", keys,
+                        "a ridge scene is {\"name\": ..., \"ridge\": {...}}, or a run scene with a \"ridge\" section; "
+                        "see docs/ridge.md");
+  if (!root.has("ridge")) root.missing("ridge", "the ridge definition, see docs/ridge.md");
+  const std::string name = run_scene ? scene->name
+                                     : root.string("name", std::filesystem::path(scene_path).stem().string(), false,
+                                                   "the scene name, e.g. \"ridge_keel_8m\"");
+  if (!run_scene) root.string("description", "", false, "free text");
+  std::string ridge_base, where;
+  const nlohmann::json rj = ridge_json(root, base, ridge_base, where);
+  rigid::RidgeDef def;
+  try {
+    def = rigid::ridge_def_from_json(rj, "/ridge", ridge_base);
+  } catch (const InputError& e) {
+    if (where.empty()) throw;
+    const std::string what = e.what();
+    const std::string msg = what.size() > e.path().size() + 2 ? what.substr(e.path().size() + 2) : what;
+    throw InputError(e.path(), "(in " + where + ") " + msg);
+  }
+  if (run_scene) {
+    take_run_ice(def, rj, *scene, where);
+    if (def.name.empty()) def.name = name;
+  }
   // Before the generation (minutes): a path that cannot be written fails now, exit 2.
-  const std::string path = output.empty() ? name + "_ridge.h5" : output;
+  if (path.empty()) path = name + "_ridge.h5";
   std::filesystem::path keel = def.keel_profile_csv;
-  if (!keel.empty() && keel.is_relative() && !base.empty()) keel = std::filesystem::path(base) / keel;
+  if (!keel.empty() && keel.is_relative() && !ridge_base.empty()) keel = std::filesystem::path(ridge_base) / keel;
   check_output_path(path, "", {{"the ridge scene file", scene_path}, {"the keel profile", keel.string()}});
   if (!ignore_memory_limit) {
     // Before anything is generated: the blocks must fit in the machine's memory.
@@ -69,6 +191,7 @@ int ridge_command(const std::string& scene_path, const std::string& output, std:
   if (ec) throw std::runtime_error("cannot rename '" + partial + "' to '" + path + "': " + ec.message());
   nlohmann::json rep = rigid::ridge_report(r);
   rep["output"] = path;
+  rep["generation"] = rigid::ridge_generation_json(r);
   out << rep.dump(2) << std::endl;
   return 0;
 }

@@ -25,7 +25,7 @@ using rigid::ridge_report;
 
 namespace {
 
-constexpr const char* kFormat = "hybridsim-ridge/1";
+constexpr const char* kFormat = "hybridsim-ridge/2";
 
 using H = h5::Handle;
 
@@ -152,7 +152,8 @@ nlohmann::json stats_json(const RidgeStats& s) {
           {"final_kinetic_energy_sail_fraction", s.final_kinetic_energy_sail_fraction},
           {"final_mean_displacement", s.final_mean_displacement},
           {"final_max_displacement", s.final_max_displacement},
-          {"max_final_overlap", s.max_final_overlap}, {"wall_time", s.wall_time}};
+          {"max_final_overlap", s.max_final_overlap}, {"wall_time", s.wall_time},
+          {"block_net_buoyancy", s.block_net_buoyancy}, {"plate_net_buoyancy", s.plate_net_buoyancy}};
 }
 
 RidgeStats stats_from_json(const nlohmann::json& j) {
@@ -184,6 +185,8 @@ RidgeStats stats_from_json(const nlohmann::json& j) {
   s.final_kinetic_energy_median = j.value("final_kinetic_energy_median", 0.0);
   s.final_kinetic_energy_sail_fraction = j.value("final_kinetic_energy_sail_fraction", 0.0);
   s.wall_time = j.at("wall_time").get<double>();
+  s.block_net_buoyancy = j.at("block_net_buoyancy").get<double>();
+  s.plate_net_buoyancy = j.at("plate_net_buoyancy").get<double>();
   return s;
 }
 
@@ -205,6 +208,7 @@ void save_ridge(const std::string& path, const RidgeResult& r) {
   write_str_attr(c, root.get(), "definition", ridge_def_to_json(r.def).dump());
   write_str_attr(c, root.get(), "stats", stats_json(r.stats).dump());
   write_str_attr(c, root.get(), "report", ridge_report(r).dump(2));
+  write_str_attr(c, root.get(), "generation", rigid::ridge_generation_json(r).dump());
 
   {
     H g = group(c, root.get(), "blocks");
@@ -240,17 +244,19 @@ void save_ridge(const std::string& path, const RidgeResult& r) {
   }
   {
     H g = group(c, root.get(), "ice");
-    std::vector<double> he, pos;
+    std::vector<double> he, pos, lift;
     std::vector<std::int32_t> part;
     for (const IceBox& b : r.ice) {
       put3(he, b.half_extents);
       put3(pos, b.position);
       part.push_back(b.part);
+      lift.push_back(b.lift);
     }
     const hsize_t k = r.ice.size();
     write_ds(c, g.get(), "half_extents", he, k, 3);
     write_ds(c, g.get(), "position", pos, k, 3);
     write_ds(c, g.get(), "part", part, k, 1);
+    write_ds(c, g.get(), "lift", lift, k, 1);
   }
   {
     H g = group(c, root.get(), "profile");
@@ -276,12 +282,32 @@ RidgeResult load_ridge(const std::string& path) {
   if (H5Lexists(file.get(), "ridge", H5P_DEFAULT) <= 0) c.fail("group lookup", "/ridge");
   H root(c.id(H5Gopen2(file.get(), "ridge", H5P_DEFAULT), "H5Gopen2", "/ridge"), H5Gclose);
   const std::string fmt = read_str_attr(c, root.get(), "file_format");
+  if (fmt == "hybridsim-ridge/1")
+    throw InputError(path, "file_format is 'hybridsim-ridge/1': the ridge was made before ridge files recorded what "
+                           "they were generated with (ice and water density, friction, the ice sheet; "
+                           "docs/ridge.md, \"Generation record\"), so a run cannot check that its ice is the same; "
+                           "regenerate it with `hybridsim ridge <scene>.json`");
   if (fmt != kFormat) throw InputError(path, "file_format is '" + fmt + "', expected '" + kFormat + "'");
   RidgeResult r;
   try {
     r.def = ridge_def_from_json(nlohmann::json::parse(read_str_attr(c, root.get(), "definition")),
                                 "/ridge@definition");
     r.stats = stats_from_json(nlohmann::json::parse(read_str_attr(c, root.get(), "stats")));
+    r.generation = nlohmann::json::parse(read_str_attr(c, root.get(), "generation"));
+    const nlohmann::json& sh = r.generation.at("sheet");
+    rigid::RidgeSheet& sheet = r.def.sheet;
+    sheet.floating = sh.at("kind").get<std::string>() == "floating";
+    sheet.consolidated_layer_center_x = r.generation.at("consolidated_layer").at("center_x").get<double>();
+    if (sheet.floating) {
+      sheet.particle_diameter = sh.at("particle_diameter").get<double>();
+      sheet.plate_width = sh.at("plate_width").get<double>();
+      sheet.plates_joined = sh.at("plates_joined").get<bool>();
+      sheet.level_top = sh.at("level_ice").at("top_z").get<double>();
+      sheet.level_underside = sh.at("level_ice").at("underside_z").get<double>();
+      sheet.layer_top = sh.at("consolidated_layer").at("top_z").get<double>();
+      sheet.layer_underside = sh.at("consolidated_layer").at("underside_z").get<double>();
+      sheet.layer_width = sh.at("consolidated_layer").at("width").get<double>();
+    }
   } catch (const nlohmann::json::exception& e) {
     throw InputError(path, std::string("bad ridge attributes: ") + e.what());
   }
@@ -339,13 +365,17 @@ RidgeResult load_ridge(const std::string& path) {
     if (t != k) c.fail("row count check", "/ridge/ice/position");
     const auto part = read_ds<std::int32_t>(c, g.get(), "part", 1, t);
     if (t != k) c.fail("row count check", "/ridge/ice/part");
+    const auto lift = read_ds<double>(c, g.get(), "lift", 1, t);
+    if (t != k) c.fail("row count check", "/ridge/ice/lift");
     check_values(c, he, 3, "/ridge/ice/half_extents", true);
     check_values(c, pos, 3, "/ridge/ice/position");
+    check_values(c, lift, 1, "/ridge/ice/lift");
     r.ice.resize(k);
     for (std::size_t i = 0; i < k; ++i) {
       r.ice[i].half_extents = get3(he, i);
       r.ice[i].position = get3(pos, i);
       r.ice[i].part = part[i];
+      r.ice[i].lift = lift[i];
     }
     for (const RidgeJoint& j : r.joints)
       if (j.b < 0 && static_cast<hsize_t>(-1 - j.b) >= k) c.fail("joint ice index check", "/ridge/joints/blocks");

@@ -4,6 +4,7 @@
 #include "common/error.h"
 #include "common/ice_formulas.h"
 #include "json/reader.h"
+#include "rigid/box_water.h"
 #include "rigid/rigid_world.h"
 
 #include <algorithm>
@@ -281,12 +282,21 @@ std::vector<double> sample_log_aspect(const AspectLognormal& a, std::size_t n, s
   return out;
 }
 
+/// Half width of the consolidated layer's contact surface (the run's particles with a floating sheet).
+static double layer_half_width(const RidgeDef& d) {
+  return 0.5 * (d.sheet.floating && d.consolidated_layer_width > 0.0 ? d.sheet.layer_width : d.consolidated_layer_width);
+}
+
 double ice_draft(const RidgeDef& d, double x) {
+  const bool in_layer = std::abs(x) < layer_half_width(d);
+  if (d.sheet.floating) return -(in_layer ? d.sheet.layer_underside : d.sheet.level_underside);
   const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
                                                                   : d.level_ice_thickness;
   return flotation_draft(t, d.ice_density, d.water_density);
 }
 double ice_freeboard(const RidgeDef& d, double x) {
+  const bool in_layer = std::abs(x) < layer_half_width(d);
+  if (d.sheet.floating) return in_layer ? d.sheet.layer_top : d.sheet.level_top;
   const double t = std::abs(x) < 0.5 * d.consolidated_layer_width ? d.consolidated_layer_thickness
                                                                   : d.level_ice_thickness;
   return flotation_freeboard(t, d.ice_density, d.water_density);
@@ -448,6 +458,14 @@ void validate(const RidgeDef& d, const std::string& P) {
   req(d.joints.min_area >= 0.0, "joints/min_area", "must be >= 0 (m^2)");
   req(d.profile_bin > 0.0, "profile_bin", "must be > 0 (m)");
   req(d.porosity_grid > 0.0, "porosity_grid", "must be > 0 (m)");
+  req(d.sheet.plate_width >= 0.0, "plate_width", "must be >= 0 (m; 0: one plate per part)");
+  if (d.sheet.floating) {
+    const RidgeSheet& h = d.sheet;
+    req(h.level_top > 0.0 && h.level_underside < 0.0 && h.layer_top > 0.0 && h.layer_underside < 0.0, "",
+        "the run's sheet must float with its top above and its underside below the waterline (level ice " +
+            json_fmt(h.level_underside) + " .. " + json_fmt(h.level_top) + " m, consolidated layer " +
+            json_fmt(h.layer_underside) + " .. " + json_fmt(h.layer_top) + " m)");
+  }
 }
 
 }  // namespace
@@ -484,13 +502,41 @@ struct RidgeRun {
   }
 };
 
-/// Ice sheet: fixed boxes (level ice left/right, consolidated layer in the middle).
+/// Gap left between neighbouring plates and between a plate and the end walls, m: plates
+/// that heave independently must not rub (friction) on each other.
+constexpr double kPlateGap = 1e-3;
+
+/// Ice sheet: level ice left/right, consolidated layer in the middle. Fixed boxes of the
+/// solid slab, or (sheet.floating) plates of the run's sheet geometry, each part cut into
+/// strips about plate_width wide.
 void add_ice_sheet(RidgeRun& run, std::vector<IceBox>& ice) {
   const RidgeDef& d = run.d;
   run.kx = keel_half_width(d);
   run.sx = sail_half_width(d);
   run.ice_half = std::max(run.kx, run.sx) + d.level_ice_margin;
-  run.wcl = std::min(d.consolidated_layer_width, 2.0 * run.ice_half);
+  run.wcl = std::min(2.0 * layer_half_width(d), 2.0 * run.ice_half);
+  if (d.sheet.floating) {
+    auto plates = [&](double x0, double x1, int part) {
+      if (x1 - x0 <= 0.0) return;
+      const double top = part == 1 ? d.sheet.layer_top : d.sheet.level_top;
+      const double under = part == 1 ? d.sheet.layer_underside : d.sheet.level_underside;
+      const int n = d.sheet.plate_width > 0.0
+                        ? std::max(1, static_cast<int>(std::lround((x1 - x0) / d.sheet.plate_width)))
+                        : 1;
+      const double w = (x1 - x0) / n;
+      for (int i = 0; i < n; ++i) {
+        IceBox b;
+        b.half_extents = Vec3(0.5 * (w - kPlateGap), 0.5 * (d.length - 2.0 * kPlateGap), 0.5 * (top - under));
+        b.position = Vec3(x0 + (i + 0.5) * w, 0.5 * d.length, 0.5 * (top + under));
+        b.part = part;
+        ice.push_back(b);
+      }
+    };
+    plates(-run.ice_half, -0.5 * run.wcl, 0);
+    plates(-0.5 * run.wcl, 0.5 * run.wcl, 1);
+    plates(0.5 * run.wcl, run.ice_half, 0);
+    return;
+  }
   auto ice_box = [&](double x0, double x1, double t, int part) {
     if (x1 - x0 <= 0.0) return;
     const double draft = flotation_draft(t, d.ice_density, d.water_density);
@@ -675,10 +721,11 @@ class Placement {
   std::vector<std::pair<double, double>> ivals_;
 };
 
-/// The rigid world of the settling: ice and end walls fixed, blocks released at rest.
-/// Returns the blocks' ids in `placed` order.
+/// The rigid world of the settling: end walls fixed, the ice fixed or floating plates (heave
+/// only), blocks released at rest. Returns the blocks' ids in `placed` order; the ice boxes'
+/// ids go to `ice_ids`.
 std::vector<BlockId> build_settle_world(RigidWorld& world, const RidgeRun& run, const std::vector<IceBox>& ice,
-                                        const std::vector<Placed>& placed) {
+                                        const std::vector<Placed>& placed, std::vector<BlockId>& ice_ids) {
   const RidgeDef& d = run.d;
   double zmin = 0.0, zmax = 0.0;
   for (const Placed& p : placed) {
@@ -689,8 +736,30 @@ std::vector<BlockId> build_settle_world(RigidWorld& world, const RidgeRun& run, 
     BlockDef bd;
     bd.half_extents = b.half_extents;
     bd.position = b.position;
-    bd.fixed = true;
-    world.add_block(bd);
+    if (d.sheet.floating) {
+      bd.density = plate_density(b.position.z() + b.half_extents.z(), b.position.z() - b.half_extents.z(),
+                                 d.water_density);
+      bd.linear_factor = Vec3::UnitZ();
+      bd.angular_factor = Vec3::Zero();
+    } else {
+      bd.fixed = true;
+    }
+    ice_ids.push_back(world.add_block(bd));
+  }
+  if (d.sheet.floating && d.sheet.plates_joined) {
+    // Fixed joints between neighbours (the settle world's joints never break: its strength is
+    // infinite), anchored at the middle of their common edge.
+    for (std::size_t k = 0; k + 1 < ice.size(); ++k) {
+      FreezeJointDef j;
+      j.a = ice_ids[k];
+      j.b = ice_ids[k + 1];
+      j.anchor = Vec3(0.5 * (ice[k].position.x() + ice[k].half_extents.x() + ice[k + 1].position.x() -
+                             ice[k + 1].half_extents.x()),
+                      ice[k].position.y(), std::min(ice[k].position.z(), ice[k + 1].position.z()));
+      j.normal = Vec3::UnitX();
+      j.area = 1.0;
+      world.add_freeze_joint(j);
+    }
   }
   if (d.end_walls) {
     for (int s = 0; s < 2; ++s) {
@@ -729,7 +798,7 @@ RigidWorldDef settle_world_def(const RidgeDef& d) {
   wd.allow_sleep = d.settle.allow_sleep;
   wd.sleep_linear_velocity = 0.02;
   wd.sleep_angular_velocity = 0.02;
-  wd.freeze_bond_strength = 0.0;
+  wd.freeze_bond_strength = std::numeric_limits<double>::infinity();  // the plates' joints hold
   return wd;
 }
 
@@ -896,6 +965,29 @@ void collect_blocks(const RigidWorld& world, const std::vector<BlockId>& ids, st
     placed[i].aabb = aabb_half(placed[i].h, placed[i].R);
     if (b.part == 0) ++res.stats.keel_blocks;
     else ++res.stats.sail_blocks;
+  }
+}
+
+/// The plates' final poses (heave only) and lifts; the vertical force balance of the whole.
+void collect_plates(const RigidWorld& world, const std::vector<BlockId>& ice_ids, RidgeResult& res) {
+  const RidgeDef& d = res.def;
+  const double g = 9.81;
+  auto net_buoyancy = [&](const Vec3& h, const Vec3& x, const Quat& q, double density) {
+    const SubmergedBox sb = submerged_box(h, x, q, 0.0);
+    return g * (d.water_density * sb.volume - density * 8.0 * h.prod());
+  };
+  res.stats.block_net_buoyancy = 0.0;
+  for (const RidgeBlock& b : res.blocks)
+    res.stats.block_net_buoyancy += net_buoyancy(b.half_extents, b.position, b.orientation, d.ice_density);
+  res.stats.plate_net_buoyancy = 0.0;
+  if (!d.sheet.floating) return;
+  for (std::size_t k = 0; k < res.ice.size(); ++k) {
+    IceBox& b = res.ice[k];
+    const double rest = b.position.z();
+    const double rho = plate_density(rest + b.half_extents.z(), rest - b.half_extents.z(), d.water_density);
+    b.position = world.position(ice_ids[k]);
+    b.lift = b.position.z() - rest;
+    res.stats.plate_net_buoyancy += net_buoyancy(b.half_extents, b.position, Quat::Identity(), rho);
   }
 }
 
@@ -1107,10 +1199,12 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
 
   // Compaction and settling in the rigid world.
   RigidWorld world(settle_world_def(d));
-  const std::vector<BlockId> ids = build_settle_world(world, run, res.ice, placed);
+  std::vector<BlockId> ice_ids;
+  const std::vector<BlockId> ids = build_settle_world(world, run, res.ice, placed, ice_ids);
   const double ke = Settling(run, world, ids, placed).run(res.stats);
   final_energy_stats(world, ids, placed, res.stats);
   collect_blocks(world, ids, placed, res);
+  collect_plates(world, ice_ids, res);
 
   // Joints, then the report.
   run.report("joints", res.stats.settle_time, ke, n);
@@ -1142,7 +1236,7 @@ const std::vector<std::string>& ridge_keys() {
       "ice_density", "water_density", "keel_depth", "keel_width", "shoulder_slope_deg", "keel_profile_csv",
       "keel_profile", "sail_height", "sail_width", "sail_slope_deg", "length", "end_walls", "block_thickness",
       "aspect_lognormal", "block_width_fraction", "max_tilt_deg", "fill_porosity", "placement_candidates", "seed",
-      "settle", "joints", "profile_bin", "porosity_grid"};
+      "settle", "joints", "profile_bin", "porosity_grid", "plate_width", "plates_joined"};
   return k;
 }
 
@@ -1266,6 +1360,9 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& P, cons
   }
   d.profile_bin = r.number("profile_bin", d.profile_bin, Range::any(), "m", "e.g. 1");
   d.porosity_grid = r.number("porosity_grid", d.porosity_grid, Range::any(), "m", "e.g. 0.25");
+  d.sheet.plate_width = r.number("plate_width", d.sheet.plate_width, Range::any(), "m",
+                                 "x width of the floating plate strips (ridges of a run scene), 0 for one plate per part");
+  d.sheet.plates_joined = r.boolean("plates_joined", d.sheet.plates_joined);
   validate(d, P);
   return d;
 }
@@ -1319,6 +1416,48 @@ nlohmann::json ridge_def_to_json(const RidgeDef& d) {
   j["joints"] = {{"gap", d.joints.gap}, {"min_area", d.joints.min_area}, {"to_ice", d.joints.to_ice}};
   j["profile_bin"] = d.profile_bin;
   j["porosity_grid"] = d.porosity_grid;
+  j["plate_width"] = d.sheet.plate_width;
+  j["plates_joined"] = d.sheet.plates_joined;
+  return j;
+}
+
+double plate_density(double top, double underside, double water_density) {
+  if (!(top > 0.0 && underside < 0.0))
+    throw InputError("", "a floating plate needs its top above and its underside below the waterline (top " +
+                             json_fmt(top) + " m, underside " + json_fmt(underside) + " m)");
+  return water_density * (-underside) / (top - underside);
+}
+
+nlohmann::json ridge_generation_json(const RidgeResult& r) {
+  const RidgeDef& d = r.def;
+  nlohmann::json j;
+  j["ice_density"] = d.ice_density;
+  j["water_density"] = d.water_density;
+  j["friction"] = d.settle.friction;
+  j["compaction_friction"] = d.settle.compaction_friction;
+  j["level_ice_thickness"] = d.level_ice_thickness;
+  j["consolidated_layer"] = {{"thickness", d.consolidated_layer_thickness},
+                             {"width", d.consolidated_layer_width},
+                             {"center_x", d.sheet.consolidated_layer_center_x}};
+  if (!d.sheet.floating) {
+    j["sheet"] = {{"kind", "fixed"}};
+  } else {
+    j["sheet"] = {{"kind", "floating"},
+                  {"particle_diameter", d.sheet.particle_diameter},
+                  {"plate_width", d.sheet.plate_width},
+                  {"plates_joined", d.sheet.plates_joined},
+                  {"level_ice", {{"top_z", d.sheet.level_top}, {"underside_z", d.sheet.level_underside}}},
+                  {"consolidated_layer",
+                   {{"top_z", d.sheet.layer_top}, {"underside_z", d.sheet.layer_underside}, {"width", d.sheet.layer_width}}}};
+  }
+  nlohmann::json plates = nlohmann::json::array();
+  if (d.sheet.floating)
+    for (const IceBox& b : r.ice)
+      plates.push_back({{"x", {b.position.x() - b.half_extents.x(), b.position.x() + b.half_extents.x()}},
+                        {"part", b.part},
+                        {"lift", b.lift}});
+  j["plates"] = plates;
+  j["vertical_balance_N"] = {{"blocks", r.stats.block_net_buoyancy}, {"plates", r.stats.plate_net_buoyancy}};
   return j;
 }
 
@@ -1346,6 +1485,18 @@ nlohmann::json ridge_report(const RidgeResult& r) {
                  {"kinetic_energy_sail_fraction", s.final_kinetic_energy_sail_fraction},
                  {"last_second_displacement_m", {{"mean", s.final_mean_displacement}, {"max", s.final_max_displacement}}}};
   j["max_final_overlap_m"] = s.max_final_overlap;
+  j["vertical_balance_N"] = {{"blocks_net_buoyancy", s.block_net_buoyancy},
+                             {"plates_net_buoyancy", s.plate_net_buoyancy},
+                             {"sum", s.block_net_buoyancy + s.plate_net_buoyancy}};
+  if (r.def.sheet.floating) {
+    double lo = 1e300, hi = -1e300, lmax = -1e300;
+    for (const IceBox& b : r.ice) {
+      lo = std::min(lo, b.lift);
+      hi = std::max(hi, b.lift);
+      if (b.part == 1) lmax = std::max(lmax, b.lift);
+    }
+    j["plate_lift_m"] = {{"min", lo}, {"max", hi}, {"consolidated_layer_max", lmax}};
+  }
   j["wall_time_s"] = s.wall_time;
   return j;
 }

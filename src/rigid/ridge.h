@@ -87,8 +87,35 @@ struct RidgeJointDef {
   bool to_ice = true;       ///< also freeze blocks to the level ice / consolidated layer
 };
 
+/// The ice a ridge settles under (docs/ridge.md, "Floating plates").
+/// floating = false (standalone ridge scenes): fixed boxes of the solid slab, t thick at the
+/// flotation draft t rho_i / rho_w. floating = true (a run scene's ridge): plates with the
+/// geometry of the run's particle sheet at rest (contact surfaces: top and bottom layer
+/// centres +- D/2, from sim::sheet_geometry), free to heave only, each weighing what makes
+/// it float exactly there; the keel pushes them up and the sail loads them until the whole
+/// is in vertical equilibrium.
+struct RidgeSheet {
+  bool floating = false;
+  double level_top = 0.0, level_underside = 0.0;  ///< z at rest, level ice, m
+  double layer_top = 0.0, layer_underside = 0.0;  ///< z at rest, consolidated layer, m
+  /// x extent of the consolidated layer's particles, m: the band's width plus one particle
+  /// diameter (the spheres whose centres lie in the band reach D/2 beyond it).
+  double layer_width = 0.0;
+  double particle_diameter = 0.0;                 ///< D of the run's sheet (record only), m
+  double consolidated_layer_center_x = 0.0;       ///< the run scene's centre (record only), m
+  /// m, x width of the plate strips each part is cut into; 0 (default): one plate per part
+  /// (level ice | consolidated layer | level ice). Narrow strips have no bending stiffness
+  /// between them: a sail sinks its own strips (docs/ridge.md, "Floating plates").
+  double plate_width = 0.0;
+  /// Neighbouring plates joined rigidly (unbreakable fixed joints at their common edges): the
+  /// sheet heaves as one body, as the run's bonded lattice is one piece. false: each plate
+  /// heaves on its own (no bending stiffness: a sail pushes its plate under, docs/ridge.md).
+  bool plates_joined = true;
+};
+
 struct RidgeDef {
   std::string name;  ///< free text (scene name)
+  RidgeSheet sheet;  ///< the ice it settles under (not in the ridge JSON but plate_width)
   // Ice sheet.
   double level_ice_thickness = 0.6;            ///< m
   double consolidated_layer_thickness = 0.9;   ///< m
@@ -140,11 +167,12 @@ struct RidgeBlock {
   std::int32_t part = 0;  ///< 0 keel, 1 sail
 };
 
-/// A fixed box of the ice sheet.
+/// A box of the ice sheet: fixed, or a floating plate (RidgeSheet) at its final pose.
 struct IceBox {
   Vec3 half_extents = Vec3::Zero();
-  Vec3 position = Vec3::Zero();
+  Vec3 position = Vec3::Zero();  ///< final (a plate: after settling), m
   std::int32_t part = 0;  ///< 0 level ice, 1 consolidated layer
+  double lift = 0.0;      ///< plate: final z - rest z (up > 0), m; fixed box: 0
 };
 
 /// Freeze joint between blocks[a] and blocks[b] (b < 0: ice box -1 - b).
@@ -190,6 +218,9 @@ struct RidgeStats {
   /// Block displacement over the last second of settling, mean and max, m.
   double final_mean_displacement = 0.0, final_max_displacement = 0.0;
   double max_final_overlap = 0.0;       ///< m, largest pairwise SAT penetration after settling
+  /// Vertical balance at the end (g = 9.81): sum over blocks of buoyancy - weight, and over the
+  /// floating plates (0 for fixed ice), N. At rest the two cancel.
+  double block_net_buoyancy = 0.0, plate_net_buoyancy = 0.0;
   double wall_time = 0.0;               ///< s (not reproducible; excluded from comparisons)
 };
 
@@ -200,6 +231,9 @@ struct RidgeResult {
   std::vector<IceBox> ice;
   RidgeProfile profile;
   RidgeStats stats;
+  /// The generation record as read from a file (ridge_generation_json at save); empty for a
+  /// result fresh from generate_ridge.
+  nlohmann::json generation;
 };
 
 struct RidgeProgress {
@@ -221,7 +255,8 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress 
 double keel_target_depth(const RidgeDef& def, double x);
 /// Target sail height above the waterline at x (0 where there is no sail).
 double sail_target_height(const RidgeDef& def, double x);
-/// Draft (z of the underside = -draft) and freeboard of the ice at x.
+/// Draft (z of the underside = -draft) and freeboard of the ice at x (at rest; with a
+/// floating sheet: its contact surfaces).
 double ice_draft(const RidgeDef& def, double x);
 double ice_freeboard(const RidgeDef& def, double x);
 
@@ -257,6 +292,14 @@ RidgeDef ridge_def_from_json(const nlohmann::json& j, const std::string& json_pa
                              const std::string& base_dir = "");
 /// The full definition as JSON (every key; ridge_def_from_json reads it back exactly).
 nlohmann::json ridge_def_to_json(const RidgeDef& def);
+/// What the ridge was made with (the file's `generation` attribute, docs/ridge.md): ice and
+/// water density, friction, level ice and consolidated layer, the sheet (fixed boxes or the
+/// run's floating sheet: per part top/underside z, particle diameter) and every plate's
+/// x range, part and final lift.
+nlohmann::json ridge_generation_json(const RidgeResult& r);
+/// Density that makes a plate of contact surfaces [underside, top] float with them there:
+/// rho_w (-underside) / (top - underside). Throws hs::InputError unless top > 0 > underside.
+double plate_density(double top, double underside, double water_density);
 /// Summary: counts, porosity, keel depth / sail height target vs achieved, settle info.
 nlohmann::json ridge_report(const RidgeResult& r);
 

@@ -318,6 +318,8 @@ BlockId RigidWorld::add_block(const BlockDef& d) {
   if (!d.fixed) {
     s.body->setLinearVelocity(to_bt(d.velocity));
     s.body->setAngularVelocity(to_bt(d.angular_velocity));
+    if (d.linear_factor != Vec3::Ones()) s.body->setLinearFactor(to_bt(d.linear_factor));
+    if (d.angular_factor != Vec3::Ones()) s.body->setAngularFactor(to_bt(d.angular_factor));
     if (!m.def.allow_sleep)
       s.body->setActivationState(DISABLE_DEACTIVATION);
     else

@@ -122,6 +122,12 @@ struct BlockDef {
   double density = 910.0;            ///< kg/m^3
   bool fixed = false;                ///< static block (floor, wall); no water load
   double friction = -1.0;            ///< < 0: RigidWorldDef::friction
+  /// Per-axis factors (world frame) on the velocity changes of this block (Bullet's
+  /// linear/angular factor): (0, 0, 1) and 0 make a body that only heaves (the ridge
+  /// generator's floating plates). Not part of the checkpoint: worlds that restore
+  /// (the run's) use the defaults.
+  Vec3 linear_factor = Vec3::Ones();
+  Vec3 angular_factor = Vec3::Ones();
 };
 
 /// A freeze joint between two touching blocks at `anchor` (world point on the common

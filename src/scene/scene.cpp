@@ -22,7 +22,7 @@ namespace {
 const std::map<std::string, std::vector<std::string>>& schema_keys() {
   static const std::map<std::string, std::vector<std::string>> k = {
       {"", {"name", "description", "output", "time", "material", "bonds", "water", "gravity", "ice", "walls",
-            "structure", "analysis", "stability", "parallel", "blocks"}},
+            "structure", "analysis", "stability", "parallel", "blocks", "ridge"}},
       {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval", "checkpoint_interval"}},
       {"/material",
        {"density", "youngs_modulus", "poisson_ratio", "particle_diameter", "restitution", "friction",
@@ -447,7 +447,8 @@ void read_block_sources(const JsonObject& o, BlocksDef& b, const std::string& ba
     if (!std::filesystem::exists(b.ridge_file_path))
       throw InputError("/blocks/ridge_file", "cannot find " + b.ridge_file_path +
                                                  " (relative to the scene file); make it with `hybridsim ridge "
-                                                 "<ridge scene>.json -o <file>` or fix the path");
+                                                 "<this scene>.json` (a scene with a \"ridge\" section) or "
+                                                 "`hybridsim ridge <ridge scene>.json -o <file>`, or fix the path");
   }
   b.offset = o.vec<3>("offset", b.offset, "m", "shift of the ridge file's blocks, e.g. [30, 0, 0]");
   for (const char* key : {"keep_x", "keep_y"}) {

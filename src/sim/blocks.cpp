@@ -4,6 +4,7 @@
 #include "mesh/pier.h"
 #include "sim/calibrated_ice.h"
 #include "io/ridge_file.h"
+#include "sim/ridge_sheet.h"
 
 #include <algorithm>
 #include <cmath>
@@ -104,6 +105,7 @@ RidgeKeel ridge_keel(const rigid::RidgeResult& r, const std::string& path) {
 void add_ridge_blocks(BlockSetup& out, const scene::Scene& s) {
   const auto& b = s.blocks;
   const rigid::RidgeResult r = io::load_ridge(b.ridge_file_path);
+  check_ridge_generation(r, s, b.ridge_file_path);  // made with this run's ice (docs/ridge.md)
   out.ridge_blocks_in_file = r.blocks.size();
   out.ridge = ridge_keel(r, b.ridge_file_path);
   std::vector<long> kept(r.blocks.size(), -1);  // ridge row -> index in out.blocks

@@ -9,12 +9,15 @@
 #include "mesh/pier.h"
 #include "mesh/sphere_mesh_contact.h"
 #include "sim/iso_inputs.h"
+#include "sim/ridge_sheet.h"
+#include "io/ridge_file.h"
 
 #include <algorithm>
 #include <cctype>
 #include <cmath>
 #include <cstdint>
 #include <fstream>
+#include <optional>
 #include <string>
 
 namespace hs::sim {
@@ -291,17 +294,18 @@ Built build_engine(const scene::Scene& s, bool check_dt) {
   // One lattice for the whole sheet. With a consolidated layer the box is as thick as that
   // layer, hanging lower by the number of extra layers its own equilibrium draft needs (a
   // whole number of layers, so the lattice stays continuous), and the level ice keeps only
-  // its own layers outside the band.
-  std::size_t total_layers = L.layers;
-  std::size_t below = 0;  // consolidated layers below the level ice's bottom layer
-  if (s.ice.has_consolidated_layer) {
-    total_layers = L.consolidated_layers;
-    const double draft_c = s.water.enabled ? flotation_draft(total_layers * c, s.material.density, s.water.density) : 0.0;
-    const double draft_l = s.water.enabled ? flotation_draft(L.layers * c, s.material.density, s.water.density) : 0.0;
-    const long extra = std::lround((draft_c - draft_l) / c);
-    below = static_cast<std::size_t>(std::clamp<long>(extra, 0, static_cast<long>(total_layers - L.layers)));
+  // its own layers outside the band. sheet_geometry says where: the ridge generator settles
+  // its keel under plates of the same geometry (docs/ridge.md, "Floating plates").
+  const SheetGeometry g = sheet_geometry(s);
+  const std::size_t total_layers = g.total_layers;
+  const double box_bottom = g.box_bottom;
+  // A ridge generated under floating plates: the sheet starts where the plates ended (lifted by
+  // the keel's net buoyancy), so blocks and sheet start in contact and in equilibrium.
+  std::optional<rigid::RidgeResult> ridge;
+  if (s.has_blocks && !s.blocks.ridge_file_path.empty()) {
+    ridge = io::load_ridge(s.blocks.ridge_file_path);
+    check_ridge_generation(*ridge, s, s.blocks.ridge_file_path);
   }
-  const double box_bottom = L.bottom_z - below * c;
   const Vec3 half(0.5 * s.ice.length, 0.5 * s.ice.width, 0.5 * total_layers * c);
   const Pose pose{Vec3(s.ice.origin[0] + half.x(), s.ice.origin[1] + half.y(), box_bottom + half.z()),
                   Quat::Identity()};
@@ -325,6 +329,7 @@ Built build_engine(const scene::Scene& s, bool check_dt) {
       if (!in_band && (x.z() < level_lo || x.z() > level_hi)) continue;
     }
     p.x = x;
+    if (ridge) p.x.z() += sheet_lift(*ridge, x.x() - s.blocks.offset.x());
     e.add_particle(p);
   }
   out.particles = e.particles().size();

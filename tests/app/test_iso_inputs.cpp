@@ -10,6 +10,7 @@
 #include "sim/blocks.h"
 #include "sim/build.h"
 #include "sim/iso_inputs.h"
+#include "sim/ridge_sheet.h"
 
 #include <gtest/gtest.h>
 #include <hdf5.h>
@@ -223,6 +224,7 @@ TEST(IsoInputs, TheRidgeFilesKeelReachesTheBlockSetup) {
   r.profile.x = {0.0};
   r.profile.keel_target = r.profile.keel_depth = r.profile.sail_target = r.profile.sail_height = {0.0};
   const fs::path dir = hs::testing::cli_work_dir("iso_inputs");
+  hs::sim::apply_run_scene(r.def, hs::scene::parse_scene(pier_scene()));  // made with the run's ice
   hs::io::save_ridge((dir / "keel.h5").string(), r);
   json j = pier_scene();
   j["blocks"] = {{"ridge_file", "keel.h5"}};
@@ -293,7 +295,6 @@ TEST(IsoInputs, ARidgeRunRecordsItsInputsAndTheReferenceScriptAgrees) {
   r.profile.x = {0.0};
   r.profile.keel_target = r.profile.keel_depth = r.profile.sail_target = r.profile.sail_height = {0.0};
   const fs::path dir = hs::testing::cli_work_dir("iso_inputs");
-  hs::io::save_ridge((dir / "run_keel.h5").string(), r);
   const json j = json::parse(R"({
     "name": "iso_run",
     "time": {"duration": 0.02, "output_interval": 0.01},
@@ -304,6 +305,10 @@ TEST(IsoInputs, ARidgeRunRecordsItsInputsAndTheReferenceScriptAgrees) {
     "structure": {"type": "pier", "position": [-8.5, 0, 0], "velocity": [0.5, 0, 0]},
     "blocks": {"ridge_file": "run_keel.h5", "conversion": "never"}
   })");
+  json without_blocks = j;
+  without_blocks.erase("blocks");
+  hs::sim::apply_run_scene(r.def, hs::scene::parse_scene(without_blocks));  // made with the run's ice
+  hs::io::save_ridge((dir / "run_keel.h5").string(), r);
   std::ofstream(dir / "iso_run.json") << j.dump(2);
   const fs::path h5 = dir / "iso_run.h5";
   fs::remove(h5);

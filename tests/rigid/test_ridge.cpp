@@ -3,6 +3,7 @@
 #include "common/error.h"
 #include "io/ridge_file.h"
 #include "rigid/ridge.h"
+#include "rigid/rigid_world.h"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -337,4 +338,150 @@ TEST(RidgeManual, DISABLED_BuildScene) {
   if (out) io::save_ridge(out, r);
 }
 }  // namespace
+}  // namespace hs::rigid
+
+// ---------------------------------------------------------------- floating plates (issue 15)
+namespace hs::rigid {
+namespace {
+
+/// small_def under floating plates: a sheet of contact surfaces as a particle sheet of D = 0.1 m
+/// would have (level ice 0.245 m between its contact surfaces, the layer 0.408 m); numbers, not
+/// the run's sheet function (tests/app checks that one).
+RidgeDef plated_def() {
+  RidgeDef d = small_def();
+  d.ice_density = 920.0;
+  d.settle.friction = 0.3;
+  d.sheet.floating = true;
+  d.sheet.level_top = 0.03, d.sheet.level_underside = -0.215;
+  d.sheet.layer_top = 0.03, d.sheet.layer_underside = -0.378;
+  d.sheet.particle_diameter = 0.1;
+  // No sail: a sail on the 2 m wide, 3 cm freeboard layer plate would push it under (a plate
+  // under water carries no more), and this test is about the balance of floating plates.
+  d.sail_height = 0.0;
+  return d;
+}
+
+const RidgeResult& plated_ridge() {
+  static const RidgeResult r = generate_ridge(plated_def());
+  return r;
+}
+
+}  // namespace
+
+TEST(RidgePlates, AFreePlateFloatsWithItsContactSurfacesWhereTheyAre) {
+  // One plate, no blocks: plate_density makes it weigh what the water under its underside
+  // carries, so it stays at the sheet's rest geometry. Dropped 5 cm high it comes back there.
+  const double top = 0.03, under = -0.215, rho_w = 1025.0;
+  const double rho = plate_density(top, under, rho_w);
+  EXPECT_NEAR(rho, rho_w * 0.215 / 0.245, 1e-12);  // analytic: draft / thickness = rho / rho_w
+  RigidWorldDef wd;
+  wd.dt = 1.0 / 60.0;
+  RigidWorld w(wd);
+  BlockDef b;
+  b.half_extents = Vec3(2.0, 1.5, 0.5 * (top - under));
+  b.position = Vec3(0, 0, 0.5 * (top + under) + 0.05);
+  b.density = rho;
+  b.linear_factor = Vec3::UnitZ();
+  b.angular_factor = Vec3::Zero();
+  const BlockId id = w.add_block(b);
+  w.add_force(id, Vec3(300.0, 200.0, 0.0), Vec3(1.0, 0.0, 0.0));  // a push it must not follow sideways
+  w.step(20.0);
+  // Heave damping ratio ~0.3 (linear drag): after 20 s the 5 cm drop has died away.
+  const Vec3 x = w.position(id);
+  std::printf("[ plate ] rest error %.3e m\n", x.z() - 0.5 * (top + under));
+  EXPECT_NEAR(x.z(), 0.5 * (top + under), 1e-12);  // measured 1e-16 m
+  EXPECT_EQ(x.x(), 0.0);
+  EXPECT_EQ(x.y(), 0.0);
+  EXPECT_TRUE(w.orientation(id).isApprox(Quat::Identity(), 1e-12));
+}
+
+TEST(RidgePlates, ASmallRidgeUnderPlatesEndsInVerticalBalanceWithThePlatesLiftedByIt) {
+  const RidgeResult& r = plated_ridge();
+  const RidgeStats& s = r.stats;
+  std::printf("[ plates ] %zu blocks, block net buoyancy %.1f N, plates %.1f N, keel depth %.2f of %.2f m, "
+              "settled %d at %.1f s\n",
+              r.blocks.size(), s.block_net_buoyancy, s.plate_net_buoyancy, s.keel_depth_achieved,
+              s.keel_depth_target, int(s.settled), s.settle_time);
+  ASSERT_TRUE(s.settled);
+  ASSERT_EQ(r.ice.size(), 3u);  // level ice | consolidated layer | level ice
+  // Sum of (buoyancy - weight) over blocks and plates: the keel's net buoyancy is carried by the
+  // plates. Measured 0.2 % of the blocks' net buoyancy (19.5 of 9671 N: the pile still settling a
+  // little; 0.8 % with free plates); fixed ice (floating = false) leaves the plates' share at 0: the sum is the whole 100 %.
+  EXPECT_GT(s.block_net_buoyancy, 1000.0);
+  EXPECT_LT(std::abs(s.block_net_buoyancy + s.plate_net_buoyancy), 0.08 * s.block_net_buoyancy);
+  // Each plate rose by its net load / (rho_w g A): summed over the plates, rho_w g A_k lift_k is
+  // what the blocks press up with (their net buoyancy), as long as no plate emerged or sank.
+  double lifted = 0.0;
+  for (const IceBox& p : r.ice) {
+    EXPECT_LT(p.position.z() + p.half_extents.z(), p.position.z() + p.half_extents.z() - p.lift + 1.0);
+    lifted += 1025.0 * 9.81 * 4.0 * p.half_extents.x() * p.half_extents.y() * p.lift;
+  }
+  std::printf("[ plates ] sum rho_w g A lift = %.1f N\n", lifted);
+  EXPECT_NEAR(lifted, s.block_net_buoyancy, 0.08 * s.block_net_buoyancy);  // measured 0.2 %
+  // Joined (the default), the plates heave as one: each by the net buoyancy over the whole area.
+  double area = 0.0;
+  for (const IceBox& p : r.ice) area += 4.0 * p.half_extents.x() * p.half_extents.y();
+  const double predicted = s.block_net_buoyancy / (1025.0 * 9.81 * area);
+  for (const IceBox& p : r.ice) {
+    std::printf("[ plates ] lift %.5f m, predicted %.5f m\n", p.lift, predicted);
+    EXPECT_NEAR(p.lift, predicted, 0.05 * predicted);  // measured 0.5 % (the joints give a little)
+  }
+  // The plates' x ranges tile the sheet and the middle one is the consolidated layer.
+  EXPECT_EQ(r.ice[1].part, 1);
+  EXPECT_NEAR(2.0 * r.ice[1].half_extents.x(), r.def.consolidated_layer_width, 2e-3);
+}
+
+TEST(RidgePlates, FixedIceCarriesTheKeelWithoutMoving) {
+  // The switch-off of the two tests above: the same ridge under fixed boxes. Its plates' share
+  // is 0 and nothing is lifted, so the balance of the test above would fail by 100 %.
+  RidgeDef d = plated_def();
+  d.sheet.floating = false;
+  const RidgeResult r = generate_ridge(d);
+  EXPECT_EQ(r.stats.plate_net_buoyancy, 0.0);
+  for (const IceBox& p : r.ice) EXPECT_EQ(p.lift, 0.0);
+  EXPECT_GT(std::abs(r.stats.block_net_buoyancy), 1000.0);
+}
+
+TEST(RidgePlates, FreePlatesHeaveEachByItsOwnLoad) {
+  // plates_joined = false: each plate carries what presses on it. The balance holds as a whole;
+  // the layer plate, under the keel's deepest part, rises most.
+  RidgeDef d = plated_def();
+  d.sheet.plates_joined = false;
+  const RidgeResult r = generate_ridge(d);
+  const RidgeStats& s = r.stats;
+  ASSERT_TRUE(s.settled);
+  EXPECT_LT(std::abs(s.block_net_buoyancy + s.plate_net_buoyancy), 0.08 * s.block_net_buoyancy);
+  std::printf("[ free plates ] lifts %.4f %.4f %.4f m, balance %.1f of %.1f N\n", r.ice[0].lift, r.ice[1].lift,
+              r.ice[2].lift, s.block_net_buoyancy + s.plate_net_buoyancy, s.block_net_buoyancy);
+  EXPECT_GT(r.ice[1].lift, 2.0 * std::max(r.ice[0].lift, r.ice[2].lift));
+}
+
+TEST(RidgePlates, GenerationRecordRoundTrips) {
+  const RidgeResult& r = plated_ridge();
+  const std::string path =
+      (std::filesystem::temp_directory_path() / ("hs_plated_" + std::to_string(::getpid()) + ".h5")).string();
+  io::save_ridge(path, r);
+  const RidgeResult b = io::load_ridge(path);
+  std::filesystem::remove(path);
+  EXPECT_EQ(b.generation, ridge_generation_json(r));
+  EXPECT_EQ(ridge_generation_json(b), ridge_generation_json(r));
+  EXPECT_TRUE(b.def.sheet.floating);
+  EXPECT_EQ(b.def.sheet.level_top, r.def.sheet.level_top);
+  EXPECT_EQ(b.def.sheet.layer_underside, r.def.sheet.layer_underside);
+  EXPECT_EQ(b.def.ice_density, 920.0);
+  EXPECT_EQ(b.def.settle.friction, 0.3);
+  ASSERT_EQ(b.ice.size(), r.ice.size());
+  for (std::size_t k = 0; k < r.ice.size(); ++k) {
+    EXPECT_EQ(b.ice[k].lift, r.ice[k].lift);
+    EXPECT_EQ(b.ice[k].position, r.ice[k].position);
+  }
+  EXPECT_EQ(b.stats.block_net_buoyancy, r.stats.block_net_buoyancy);
+  const nlohmann::json g = b.generation;
+  EXPECT_EQ(g.at("sheet").at("kind"), "floating");
+  EXPECT_EQ(g.at("sheet").at("plates_joined"), true);
+  EXPECT_TRUE(b.def.sheet.plates_joined);
+  EXPECT_EQ(g.at("plates").size(), 3u);
+  EXPECT_EQ(g.at("plates")[1].at("lift").get<double>(), r.ice[1].lift);
+}
+
 }  // namespace hs::rigid

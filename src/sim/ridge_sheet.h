@@ -1,0 +1,51 @@
+// The run's particle sheet as the ridge generator sees it, and the check that a ridge file
+// was made with the run's ice (docs/ridge.md, "Floating plates" and "Generation record").
+//
+// sheet_geometry is the one place that says where the run puts its sheet: build_engine
+// fills its lattice from it, `hybridsim ridge <run scene>` settles the keel under plates of
+// its contact surfaces, and a run refuses a ridge file whose recorded sheet differs.
+#pragma once
+
+#include "rigid/ridge.h"
+#include "scene/scene.h"
+
+#include <cstddef>
+#include <string>
+
+namespace hs::sim {
+
+/// The sheet as build_engine lays it, floating at rest. One HCP lattice: level ice `layers`
+/// layers of spacing c from lattice-box bottom `level_box_bottom` (draft h rho_i / rho_w of
+/// h = layers c); with a consolidated layer the box is `total_layers` thick and hangs
+/// `below` whole layers lower (its own draft, rounded to whole layers). Contact surfaces
+/// (what a block touches): the outer layers' centres +- D/2.
+struct SheetGeometry {
+  double D = 0.0, c = 0.0;
+  std::size_t layers = 0, total_layers = 0, below = 0;
+  double level_box_bottom = 0.0;  ///< z, m
+  double box_bottom = 0.0;        ///< z of the whole lattice box (consolidated layer's), m
+  double level_top = 0.0, level_underside = 0.0;  ///< contact surfaces, level ice, m
+  double layer_top = 0.0, layer_underside = 0.0;  ///< consolidated layer (= level ice without one), m
+};
+SheetGeometry sheet_geometry(const scene::Scene& s);
+
+/// The ice a ridge must be generated with for this run: `def` takes the block density
+/// (blocks.density or material.density), the ice-ice friction (blocks.friction or
+/// material.friction) as the settle friction, water density, level-ice thickness, the
+/// consolidated layer (thickness and width; none: width 0) and the floating sheet of
+/// sheet_geometry. Call it after reading the ridge section.
+void apply_run_scene(rigid::RidgeDef& def, const scene::Scene& s);
+
+/// Whether the scene file itself sets the value at the JSON pointer (not a default).
+bool scene_sets(const scene::Scene& s, const char* pointer);
+
+/// Throws hs::InputError("/blocks/ridge_file", ...) unless the ridge file `path` was generated
+/// with this scene's ice: every mismatching field named with the scene's and the file's value,
+/// and the fix (`hybridsim ridge <scene>`).
+void check_ridge_generation(const rigid::RidgeResult& r, const scene::Scene& s, const std::string& path);
+
+/// The sheet's lift at ridge-frame x: the lift of the plate over x, ramped linearly over
+/// +-min(1 m, a quarter plate) across plate boundaries; 0 for a ridge without floating plates.
+double sheet_lift(const rigid::RidgeResult& r, double x);
+
+}  // namespace hs::sim
