@@ -481,14 +481,14 @@ void read_conversion_region(const JsonObject& o, ConversionRegionDef& g) {
     throw InputError("/blocks/region/half_extents", "a box region needs three half extents > 0, e.g. [15, 15, 10]");
 }
 
-/// The relaxation before the freeze: false / true, or an object.
+/// The relaxation before the freeze: false / true, or an object (on unless "enabled": false).
 void read_relax(const JsonObject& o, BlocksDef::Relax& r) {
   if (o.raw("relax").is_boolean()) {
     r.enabled = o.boolean("relax", r.enabled);
     return;
   }
   const JsonObject x = section(o, "relax");
-  r.enabled = x.boolean("enabled", r.enabled);
+  r.enabled = x.boolean("enabled", true);  // an object turns it on unless it says otherwise
   r.max_time = x.number("max_time", r.max_time, Range::positive(), "s",
                         "simulated time the relaxation may take at most, e.g. 30");
   r.speed = x.number("speed", r.speed, Range::positive(), "m/s",
@@ -524,6 +524,7 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
   b.stress_time_constant = o.number("stress_time_constant", b.stress_time_constant, Range::non_negative(), "s",
                                     "time constant of the filter on each block's stress utilisation, e.g. 0.05");
   if (o.has("region")) read_conversion_region(o, b.region);
+  b.relax.enabled = !b.ridge_file.empty();  // on by default for a ridge; a list keeps its initial state
   if (o.has("relax")) read_relax(o, b.relax);
 }
 

@@ -184,7 +184,8 @@ struct BlocksDef {
   double flexural_strength = 0.0;    ///< Pa; 0 = analysis.flexural_strength
   double stress_time_constant = 0.05;  ///< s, low-pass filter on the utilisation; 0 = none
   /// The relaxation before the freeze (docs/bridge.md, "Relaxation"; bridge::RelaxDef): on by
-  /// default, `"relax": false` turns it off.
+  /// default with a ridge file (off for a list alone: its blocks' initial state is the scene's),
+  /// `"relax": false` turns it off, `true` or an object on.
   struct Relax {
     bool enabled = true;
     double max_time = 30.0;  ///< s

@@ -425,11 +425,14 @@ TEST(SceneBlocks, DefaultsAndErrors) {
 }
 
 TEST(SceneBlocks, Relax) {
-  // The relaxation before the freeze: on by default, false turns it off, an object sets it.
+  // The relaxation before the freeze: on by default with a ridge file, off for a list alone
+  // (its initial velocities are the scene's), true / an object turns it on, false off.
   json k = minimal();
   k["blocks"] = json::parse(R"({"list": [{}]})");
   const scene::Scene d = scene::parse_scene(k);
-  EXPECT_TRUE(d.blocks.relax.enabled);
+  EXPECT_FALSE(d.blocks.relax.enabled);
+  k["blocks"]["relax"] = true;
+  EXPECT_TRUE(scene::parse_scene(k).blocks.relax.enabled);
   EXPECT_EQ(d.blocks.relax.max_time, 30.0);
   EXPECT_EQ(d.blocks.relax.speed, 0.002);
   EXPECT_EQ(d.blocks.relax.hold, 1.0);
