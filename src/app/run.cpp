@@ -104,6 +104,13 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
       << " particles if all converted); conversion \"" << bridge::to_string(hsu.def.mode) << "\"\n";
   out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
       << " DEM steps (stability limit " << sci(r.rigid_dt_limit, 4) << " s)\n";
+  const auto& x = s.blocks.relax;
+  if (x.enabled)
+    out << "relaxation:       before the freeze, up to " << x.max_time << " s simulated (at rest: below " << x.speed
+        << " m/s for " << x.hold << " s" << (x.damping > 0 ? ", damping " + sci(x.damping, 3) + " 1/s" : std::string())
+        << "); not in the time estimate below\n";
+  else
+    out << "relaxation:       off (joints and freeze bonds made at the blocks' starting poses)\n";
 }
 
 /// The output path is writable and is none of the scene's input files.
