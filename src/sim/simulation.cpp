@@ -1,5 +1,6 @@
 #include "sim/simulation.h"
 
+#include "common/error.h"
 #include "parallel/comm.h"
 
 #include <algorithm>
@@ -65,7 +66,12 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
   sim.hybrid_ = std::make_unique<bridge::HybridSystem>(e, def, b.blocks, b.joints, b.ice_joints);
   if (relax) {
     if (opt.restart_state) {
-      sim.hybrid_->restore_relaxation(*opt.restart_state, "hybrid/");
+      try {
+        sim.hybrid_->restore_relaxation(*opt.restart_state, "hybrid/");
+      } catch (const std::exception& ex) {
+        throw InputError("--restart", std::string("the checkpoint's relaxed ridge does not fit the scene as built: ") +
+                                          ex.what());
+      }
     } else {
       const auto& r = s.blocks.relax;
       const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping}, opt.relax_progress);
