@@ -21,6 +21,7 @@
 #include "sim/simulation.h"
 
 #include <chrono>
+#include <csignal>
 #include <cmath>
 #include <cstdint>
 #include <filesystem>
@@ -103,6 +104,13 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
       << " particles if all converted); conversion \"" << bridge::to_string(hsu.def.mode) << "\"\n";
   out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
       << " DEM steps (stability limit " << sci(r.rigid_dt_limit, 4) << " s)\n";
+  const auto& x = s.blocks.relax;
+  if (x.enabled)
+    out << "relaxation:       before the freeze, up to " << x.max_time << " s simulated (at rest: below " << x.speed
+        << " m/s for " << x.hold << " s" << (x.damping > 0 ? ", damping " + sci(x.damping, 3) + " 1/s" : std::string())
+        << "); not in the time estimate below\n";
+  else
+    out << "relaxation:       off (joints and freeze bonds made at the blocks' starting poses)\n";
 }
 
 /// The output path is writable and is none of the scene's input files.
@@ -140,7 +148,8 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   for (const auto& w : s.warnings) err << "warning: " << w << "\n";
   // dt is checked last, after the figures that explain it; blocks are counted, not converted.
   const sim::Simulation sim = sim::build_simulation(
-      s, par::serial(), {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit});
+      s, par::serial(),
+      {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit, .relax = false});
   for (const auto& w : sim.warnings()) err << "warning: " << w << "\n";
   const sim::Built& b = sim.built();
   const bonded::Engine& e = sim.engine();
@@ -275,7 +284,45 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const std::string ckpt_path = io::checkpoint_path(out_path);
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
-  sim::Simulation sim = sim::build_simulation(s, comm, {.ignore_memory_limit = opt.ignore_memory_limit});
+  sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit};
+  // A restart takes the relaxed ridge from the checkpoint instead of relaxing again.
+  if (restart) build.restart_state = restart->all.empty() ? &restart->state : &restart->all.front();
+  std::optional<sim::Simulation> built;
+  {
+    // The relaxation before the freeze may take minutes: a progress line every few seconds, and
+    // SIGINT/SIGTERM stop it (nothing is written yet: exit 128 + signal). Every rank relaxes
+    // alike, so under MPI they agree on a stop every 16 rigid steps.
+    StopSignals signals;
+    auto last_line = Clock::now();
+    std::uint64_t calls = 0;
+    build.relax_progress = [&](const bridge::RelaxProgress& p) {
+      if (seconds_since(last_line) >= 5.0) {
+        last_line = Clock::now();
+        std::fprintf(progress,
+                     "relax t = %.4g s of at most %g s: fastest block %.3g m/s, particle %.3g m/s, block KE %.3g J, "
+                     "below %g m/s for %.3g s\n",
+                     p.time, s.blocks.relax.max_time, p.max_block_speed, p.max_particle_speed, p.block_kinetic_energy,
+                     s.blocks.relax.speed, p.quiet_time);
+        std::fflush(progress);
+      }
+      if (comm.parallel() && ++calls % kMpiPollSteps != 0) return false;
+      double v = signals.received();
+      if (comm.parallel()) comm.max(&v, 1);
+      return v > 0.0;
+    };
+    try {
+      built.emplace(sim::build_simulation(s, comm, build));
+    } catch (const sim::RelaxationStopped& e) {
+      const int sig = signals.received() ? signals.received() : SIGINT;
+      std::fprintf(progress,
+                   "hybridsim: stopped by %s during the relaxation before the freeze (t = %s s of relaxation, "
+                   "%.1f s wall); nothing was written (the run file is made after the relaxation) and there is no "
+                   "checkpoint: run it again to start over.\nhybridsim: exit code %d.\n",
+                   signal_name(sig), sci(e.time, 4).c_str(), seconds_since(t_setup), stopped_exit_code(sig));
+      return stopped_exit_code(sig);
+    }
+  }
+  sim::Simulation& sim = *built;
   print_warnings(sim.warnings(), progress);
   io::RunFile file(out_path, run_file_meta(s, comm, opt.fsync));
   sim::Recorders rec(sim, s, comm);

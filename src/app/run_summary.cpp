@@ -31,6 +31,15 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
     if (!b.ice_joints.empty())
       std::fprintf(progress, "hybridsim: %zu ridge joints to the ice sheet became %llu block-particle freeze bonds\n",
                    b.ice_joints.size(), static_cast<unsigned long long>(r.ice_bonds_created));
+    const auto& x = sim.hybrid().relax_report();
+    if (x.ran)
+      std::fprintf(progress,
+                   "hybridsim: relaxation before the freeze: %.4g s (%llu steps), %s; at its end fastest block %.3g "
+                   "m/s, particle %.3g m/s, block KE %.3g J; sheet moved %.3g m on average (largest |dz| %.3g m), "
+                   "%llu lattice bonds broken; t = 0 from here\n",
+                   x.time, static_cast<unsigned long long>(x.steps), x.converged ? "at rest" : "NOT at rest",
+                   x.max_block_speed, x.max_particle_speed, x.block_kinetic_energy, x.sheet_mean_dz, x.sheet_max_dz,
+                   static_cast<unsigned long long>(x.lattice_bonds_broken));
   }
   if (comm.parallel()) {
     const auto& g = e.decomposition().dims();
@@ -60,6 +69,11 @@ void print_blocks(std::ostream& out, const sim::Simulation& sim) {
       << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
       << "largest utilisation seen " << sci(r.max_utilisation, 3) << "; conversion KE change "
       << sci(r.kinetic_energy_change, 3) << " J\n";
+  const auto& x = h.relax_report();
+  if (x.ran)
+    out << "  relaxation before the freeze: " << sci(x.time, 4) << " s, " << (x.converged ? "at rest" : "NOT at rest")
+        << " (fastest block " << sci(x.max_block_speed, 3) << " m/s, particle " << sci(x.max_particle_speed, 3)
+        << " m/s at its end; sheet mean dz " << sci(x.sheet_mean_dz, 3) << " m)\n";
   out << "  time: bonded " << sci(r.seconds_bonded, 4) << " s, rigid " << sci(r.seconds_rigid, 4)
       << " s, bridge " << sci(r.seconds_bridge, 4) << " s\n";
 }

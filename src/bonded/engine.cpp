@@ -558,6 +558,7 @@ void Engine::mesh_forces() {
     for (auto& v : load.part_force) v.setZero();
     for (auto& v : load.part_moment) v.setZero();
     load.contacts = 0;
+    if (walls_parked_) continue;  // a parked structure exerts nothing (set_walls_parked)
     m.next_history.clear();
     const Vec3 lo = m.grid->bounds().lo + m.position - Vec3::Constant(rmax);
     const Vec3 hi = m.grid->bounds().hi + m.position + Vec3::Constant(rmax);
@@ -829,8 +830,10 @@ void Engine::step() {
   }
   if (rotate)
     for (std::size_t i = 0; i < n; ++i) rotate_orientation(ps_.q[i], w[i], dt);
-  for (auto& wall : walls_) wall.point += dt * wall.velocity;
-  for (auto& m : meshes_) m.position += dt * m.def.velocity;
+  if (!walls_parked_) {
+    for (auto& wall : walls_) wall.point += dt * wall.velocity;
+    for (auto& m : meshes_) m.position += dt * m.def.velocity;
+  }
   time_ += dt;
   ++step_;
   const double half_skin = 0.5 * skin();

@@ -288,6 +288,20 @@ class Engine {
   void run(std::uint64_t steps);
   double time() const { return time_; }
   std::uint64_t step_count() const { return step_; }
+  /// Set-up stages before a run's t = 0 (the ridge's relaxation, docs/bridge.md): while parked,
+  /// plane and mesh walls do not move and mesh walls exert no force (plane walls still hold).
+  void set_walls_parked(bool parked) {
+    walls_parked_ = parked;
+    forces_valid_ = false;
+  }
+  bool walls_parked() const { return walls_parked_; }
+  /// Time and step count back to zero and the bond-break counters cleared: the run's t = 0
+  /// after a set-up stage (the state of every particle and bond is kept).
+  void reset_clock() {
+    time_ = 0.0;
+    step_ = 0;
+    stats_.bonds_broken = stats_.bonds_broken_tension = stats_.bonds_broken_shear = 0;
+  }
 
   // ---- state and diagnostics ----
   ParticleStore& particles() { return ps_; }
@@ -498,6 +512,7 @@ class Engine {
   double time_ = 0.0;
   std::uint64_t step_ = 0;
   StepStats stats_;
+  bool walls_parked_ = false;      ///< set_walls_parked
   // overlap check of the last force pass
   double worst_overlap_ratio_ = 0.0;
   std::uint32_t worst_overlap_i_ = 0, worst_overlap_j_ = 0;

@@ -191,6 +191,24 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
     throw std::logic_error("HybridSystem: build it before Engine::distribute() (its freeze bonds are replicated)");
   choose_rigid_step(engine, def, blocks, !ice_joints.empty() || !joints.empty(), report_);
   world_ = std::make_unique<rigid::RigidWorld>(hybrid_world_def(engine, def, report_.rigid_dt));
+  if (def.defer_freeze) {  // blocks only; relax() makes the rest (relax.cpp)
+    m.pending_ids = add_blocks(blocks, {});
+    m.pending_joints = joints;
+    m.pending_ice_joints = ice_joints;
+    // The joints' anchors are material points of the blocks as given (before any clearing
+    // shift): freeze() carries them with each block's whole motion since.
+    for (const auto& b : blocks) {
+      m.x0.push_back(b.def.position);
+      m.q0.push_back(b.def.orientation.normalized());
+    }
+    m.freeze_pending = true;
+    m.take_reference(*world_);
+    m.extrapolate(world_->time());
+    engine.add_force_source(&m.contact);
+    engine.add_force_source(&m.bonds);
+    m.contact_registered = true;
+    return;
+  }
   if (def.has_structure) m.mesh = world_->add_kinematic_mesh(def.structure);
   const std::vector<rigid::BlockId> ids = add_blocks(blocks, joints);
   m.take_reference(*world_);
@@ -200,15 +218,18 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   engine.add_force_source(&m.contact);
   engine.add_force_source(&m.bonds);
   m.contact_registered = true;
-  if (def.mode == ConversionMode::AllAtStart)
-    for (const rigid::BlockId id : world_->blocks()) {
-      if (world_->fixed(id)) continue;
-      try {
-        convert(id);
-      } catch (const InputError&) {  // thinner than D: stays rigid, as in hybrid mode
-        ++report_.conversions_refused;
-      }
+  if (def.mode == ConversionMode::AllAtStart) convert_all_at_start();
+}
+
+void HybridSystem::convert_all_at_start() {
+  for (const rigid::BlockId id : world_->blocks()) {
+    if (world_->fixed(id)) continue;
+    try {
+      convert(id);
+    } catch (const InputError&) {  // thinner than D: stays rigid, as in hybrid mode
+      ++report_.conversions_refused;
     }
+  }
 }
 
 std::vector<rigid::BlockId> HybridSystem::add_blocks(const std::vector<BlockInit>& blocks,
@@ -263,8 +284,9 @@ void HybridSystem::step() {
     const auto tb = Clock::now();
     m.extrapolate(engine_.time() + engine_.dt());
     const bool last_before_rigid = m.since_rigid + 1 >= report_.steps_per_rigid_step;
-    m.contact.set_recording(last_before_rigid && m.def.mode == ConversionMode::Hybrid);
-    m.bonds.set_recording(last_before_rigid && m.def.mode == ConversionMode::Hybrid);
+    const bool policy = m.def.mode == ConversionMode::Hybrid && !m.freeze_pending;  // none while relaxing
+    m.contact.set_recording(last_before_rigid && policy);
+    m.bonds.set_recording(last_before_rigid && policy);
     report_.seconds_bridge += seconds_since(tb);
   }
   const auto t0 = Clock::now();
@@ -294,7 +316,7 @@ void HybridSystem::step() {
   ++report_.rigid_steps;
   m.take_reference(*world_);
   report_.seconds_rigid += seconds_since(t2);
-  if (m.def.mode == ConversionMode::Hybrid) {
+  if (m.def.mode == ConversionMode::Hybrid && !m.freeze_pending) {
     const auto t3 = Clock::now();
     apply_policy();
     report_.seconds_bridge += seconds_since(t3);

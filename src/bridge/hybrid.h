@@ -21,6 +21,7 @@
 #include "rigid/rigid_world.h"
 
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -94,6 +95,45 @@ struct HybridReport {
   std::uint64_t joints_to_bonds = 0;      ///< block-particle bonds made from joints of converted blocks
 };
 
+/// The relaxation before the freeze (docs/bridge.md, "Relaxation"): the blocks and the particle
+/// sheet (its lattice bonds intact) are released in water under gravity, buoyancy and drag only
+/// (no freeze joints, no block-particle freeze bonds, the structure parked, no conversions) until
+/// they are at rest; the joints and bonds are then made at that geometry, stress free.
+struct RelaxDef {
+  double max_time = 30.0;  ///< s of simulated set-up at most
+  double speed = 0.002;    ///< m/s: at rest when every block and particle is slower ...
+  double hold = 1.0;       ///< s: ... for this long without a break
+  /// 1/s: velocities scaled by exp(-damping dt) every step of the relaxation (blocks every rigid
+  /// step); a set-up device that speeds the rest up, not physics. 0 = none.
+  double damping = 0.0;
+};
+
+/// Where a relaxation is (every rigid step, for progress lines).
+struct RelaxProgress {
+  double time = 0.0;                 ///< s of relaxation
+  double max_block_speed = 0.0;      ///< m/s: centre speed + |omega| x half diagonal
+  double max_particle_speed = 0.0;   ///< m/s
+  double block_kinetic_energy = 0.0; ///< J
+  double quiet_time = 0.0;           ///< s for which both speeds have been below RelaxDef::speed
+};
+/// Called every rigid step of the relaxation; return true to stop it there (a SIGINT).
+using RelaxProgressFn = std::function<bool(const RelaxProgress&)>;
+
+/// What a relaxation did (stored in the run file's /analysis/relaxation).
+struct RelaxReport {
+  std::uint64_t ran = 0;         ///< 1 when a relaxation ran (or was restored from a checkpoint)
+  std::uint64_t converged = 0;   ///< 1: at rest (RelaxDef::speed held for RelaxDef::hold) before max_time
+  std::uint64_t stopped = 0;     ///< 1: stopped by the progress callback (nothing frozen)
+  std::uint64_t steps = 0, rigid_steps = 0;
+  std::uint64_t lattice_bonds_broken = 0;  ///< particle bonds broken during the relaxation
+  double time = 0.0;                       ///< s simulated
+  double max_block_speed = 0.0, max_particle_speed = 0.0, block_kinetic_energy = 0.0;  ///< at the end
+  double sheet_mean_dz = 0.0;   ///< m: mean vertical displacement of the sheet's particles at the end
+  double sheet_max_dz = 0.0;    ///< m: largest |vertical displacement| of a particle at the end
+  double sheet_peak_mean_dz = 0.0;  ///< m: largest |mean vertical displacement| during the relaxation
+  RelaxDef def;                 ///< the settings
+};
+
 /// Everything the hybrid system needs besides the engine and the blocks.
 struct HybridDef {
   ConversionMode mode = ConversionMode::Hybrid;
@@ -117,6 +157,10 @@ struct HybridDef {
   /// Freeze joints between blocks: false (default) springs as stiff per unit area as the
   /// particles' freeze bonds (unless world.joint_stiffness is set), true Bullet's rigid joints.
   bool rigid_joints = false;
+  /// true: the constructor adds the blocks only (no freeze joints, no block-particle freeze
+  /// bonds, no structure in the rigid world, no conversion); relax() (or restore_relaxation())
+  /// releases them and then makes all of those at the relaxed geometry.
+  bool defer_freeze = false;
 };
 
 /// One block to start with.
@@ -175,6 +219,25 @@ class HybridSystem {
   double rigid_kinetic_energy() const;
 
   const HybridReport& report() const { return report_; }
+
+  // ---- relaxation before the freeze (HybridDef::defer_freeze; relax.cpp) ----
+  /// Whether the freeze joints and bonds wait for relax() or restore_relaxation().
+  bool freeze_pending() const;
+  /// Releases the blocks and the sheet (see RelaxDef) until they are at rest or def.max_time has
+  /// passed, then freezes: the structure into the rigid world, the freeze joints (each ridge
+  /// anchor and normal carried with its first block's motion) and the block-particle freeze bonds
+  /// (patches carried with their block) made stress free at the relaxed geometry, all_at_start's
+  /// conversion, and the engine's and the rigid world's clocks back to t = 0. The structure's
+  /// walls are parked meanwhile (Engine::set_walls_parked). If `progress` asks to stop, returns at
+  /// once with `stopped` set and nothing frozen. Call before Engine::distribute().
+  const RelaxReport& relax(const RelaxDef& def, const RelaxProgressFn& progress = {});
+  /// Instead of relax() when restarting from a checkpoint of a run that relaxed: the rigid world
+  /// as the relaxation left it (saved with every checkpoint) and the same freeze, so that joints
+  /// and bonds are made exactly as in the original run.
+  void restore_relaxation(const StateArchive& a, const std::string& prefix);
+  const RelaxReport& relax_report() const;
+  /// Elastic energy of the block-particle freeze bonds of this rank's particles, J.
+  double block_bond_elastic_energy() const;
   /// Converts block `id` now (removes it from the rigid world and appends its particles);
   /// the policy calls it, tests may too. Returns the converter's report.
   ConversionReport convert(rigid::BlockId id);
@@ -203,6 +266,10 @@ class HybridSystem {
   /// The starting blocks (moved clear of the particles) and their joints into the world, and
   /// every block into the particle contact; returns the blocks' ids in `blocks` order.
   std::vector<rigid::BlockId> add_blocks(const std::vector<BlockInit>& blocks, const std::vector<JointInit>& joints);
+  /// The structure, the joints, the block-particle bonds and all_at_start's conversion, made now
+  /// (relax.cpp); clocks to zero.
+  void freeze();
+  void convert_all_at_start();
   bonded::Engine& engine_;
   std::unique_ptr<rigid::RigidWorld> world_;
   HybridReport report_;

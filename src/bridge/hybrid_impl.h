@@ -6,6 +6,7 @@
 #include "bridge/block_contact.h"
 #include "bridge/coupling.h"
 #include "bridge/hybrid.h"
+#include "common/state_archive.h"
 
 #include <vector>
 
@@ -33,6 +34,16 @@ struct HybridSystem::Impl {
   };
   std::vector<Ref> ref;  ///< block states at the last rigid step (time t_ref)
   double t_ref = 0.0;
+  // The freeze that waits for the relaxation (HybridDef::defer_freeze): the joints as given,
+  // the blocks' ids (BlockInit order) and their poses when the joints' anchors were given.
+  bool freeze_pending = false;
+  std::vector<JointInit> pending_joints;
+  std::vector<IceJointInit> pending_ice_joints;
+  std::vector<rigid::BlockId> pending_ids;
+  std::vector<Vec3> x0;
+  std::vector<Quat> q0;
+  StateArchive relaxed_world;  ///< the rigid world at the end of the relaxation (checkpoints)
+  RelaxReport relax;
 
   /// Reads every block's state from the world as the new kinematic reference.
   void take_reference(const rigid::RigidWorld& w) {

@@ -131,6 +131,10 @@ void HybridSystem::save_state(StateArchive& a, const std::string& p) const {
   a.put_value(p + "t_ref", m.t_ref);
   a.put(p + "coupler_linear", m.coupler.linear());
   a.put(p + "coupler_angular", m.coupler.angular());
+  if (m.relax.ran) {  // the relaxed world, for restore_relaxation (relax.cpp)
+    a.put_value(p + "relax_report", m.relax);
+    for (const auto& [key, value] : m.relaxed_world.entries) a.put_bytes(p + "relaxed/" + key, value);
+  }
 }
 
 std::size_t HybridSystem::load_state(const StateArchive& a, const std::string& p) {

@@ -419,6 +419,10 @@ void RigidWorld::substep() {
 }
 
 double RigidWorld::time() const { return impl_->time; }
+void RigidWorld::reset_clock() {
+  impl_->time = 0.0;
+  impl_->steps = 0;
+}
 std::uint64_t RigidWorld::step_count() const { return impl_->steps; }
 
 Vec3 RigidWorld::position(BlockId id) const {
@@ -650,6 +654,19 @@ void RigidWorld::remove_joint(JointId id) {
   j.alive = false;
   ++j.generation;
   m.free_joints.push_back(id.index);
+}
+
+RigidWorld::JointStrain RigidWorld::joint_strain(JointId id) const {
+  const JointSlot& j = impl_->joint(id);
+  JointStrain s;
+  const auto* c = dynamic_cast<const btGeneric6DofSpring2Constraint*>(j.constraint.get());
+  if (!c) return s;  // broken: no frames
+  const btTransform fa = c->getRigidBodyA().getWorldTransform() * c->getFrameOffsetA();
+  const btTransform fb = c->getRigidBodyB().getWorldTransform() * c->getFrameOffsetB();
+  s.displacement = from_bt(fb.getOrigin() - fa.getOrigin()).norm();
+  const btQuaternion dq = fa.getRotation().inverse() * fb.getRotation();
+  s.angle = 2.0 * std::atan2(btVector3(dq.x(), dq.y(), dq.z()).length(), std::abs(dq.w()));
+  return s;
 }
 
 bool RigidWorld::joint_broken(JointId id) const { return impl_->joint(id).broken; }

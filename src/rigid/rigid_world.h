@@ -192,6 +192,9 @@ class RigidWorld {
   void substep();
   double time() const;
   std::uint64_t step_count() const;
+  /// Time and step count back to zero (the run's t = 0 after a set-up stage such as the
+  /// ridge's relaxation); every body, joint and contact is kept.
+  void reset_clock();
 
   Vec3 position(BlockId id) const;
   Quat orientation(BlockId id) const;
@@ -243,6 +246,13 @@ class RigidWorld {
   FreezeJointDef joint_def(JointId id) const;
 
   JointId add_freeze_joint(const FreezeJointDef& j);
+  /// How far an intact joint's two frames (fixed in a and in b, coincident when it was made)
+  /// are apart now: translation (m) and rotation angle (rad). Zero at creation: a joint is made
+  /// stress free in the current poses.
+  struct JointStrain {
+    double displacement = 0.0, angle = 0.0;
+  };
+  JointStrain joint_strain(JointId id) const;
   void remove_joint(JointId id);
   bool joint_broken(JointId id) const;
   JointLoad joint_load(JointId id) const;

@@ -46,7 +46,8 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/blocks",
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "rigid_dt", "conversion", "region", "safety_factor",
-        "flexural_strength", "stress_time_constant"}},
+        "flexural_strength", "stress_time_constant", "relax"}},
+      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
   };
@@ -481,6 +482,23 @@ void read_conversion_region(const JsonObject& o, ConversionRegionDef& g) {
     throw InputError("/blocks/region/half_extents", "a box region needs three half extents > 0, e.g. [15, 15, 10]");
 }
 
+/// The relaxation before the freeze: false / true, or an object (on unless "enabled": false).
+void read_relax(const JsonObject& o, BlocksDef::Relax& r) {
+  if (o.raw("relax").is_boolean()) {
+    r.enabled = o.boolean("relax", r.enabled);
+    return;
+  }
+  const JsonObject x = section(o, "relax");
+  r.enabled = x.boolean("enabled", true);  // an object turns it on unless it says otherwise
+  r.max_time = x.number("max_time", r.max_time, Range::positive(), "s",
+                        "simulated time the relaxation may take at most, e.g. 30");
+  r.speed = x.number("speed", r.speed, Range::positive(), "m/s",
+                     "at rest when every block and particle is slower than this, e.g. 0.002");
+  r.hold = x.number("hold", r.hold, Range::non_negative(), "s", "how long the speeds must stay below speed, e.g. 1");
+  r.damping = x.number("damping", r.damping, Range::non_negative(), "1/s",
+                       "numerical velocity damping during the relaxation only (a set-up device), e.g. 0.5");
+}
+
 /// Rigid ice blocks and their conversion.
 void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) {
   if (!root.has("blocks")) return;
@@ -507,6 +525,8 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
   b.stress_time_constant = o.number("stress_time_constant", b.stress_time_constant, Range::non_negative(), "s",
                                     "time constant of the filter on each block's stress utilisation, e.g. 0.05");
   if (o.has("region")) read_conversion_region(o, b.region);
+  b.relax.enabled = !b.ridge_file.empty();  // on by default for a ridge; a list keeps its initial state
+  if (o.has("relax")) read_relax(o, b.relax);
 }
 
 }  // namespace

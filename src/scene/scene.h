@@ -183,6 +183,16 @@ struct BlocksDef {
   double safety_factor = 1.0;        ///< converts when utilisation x safety_factor >= 1
   double flexural_strength = 0.0;    ///< Pa; 0 = analysis.flexural_strength
   double stress_time_constant = 0.05;  ///< s, low-pass filter on the utilisation; 0 = none
+  /// The relaxation before the freeze (docs/bridge.md, "Relaxation"; bridge::RelaxDef): on by
+  /// default with a ridge file (off for a list alone: its blocks' initial state is the scene's),
+  /// `"relax": false` turns it off, `true` or an object on.
+  struct Relax {
+    bool enabled = true;
+    double max_time = 30.0;  ///< s
+    double speed = 0.002;    ///< m/s
+    double hold = 1.0;       ///< s
+    double damping = 0.0;    ///< 1/s, a set-up device (not physics)
+  } relax;
 };
 
 struct Scene {

@@ -50,6 +50,20 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
   an.hybrid = hyb.report();
   an.block_bonds_broken = hyb.block_particle_bonds_broken();
   an.conversion = bridge::to_string(sim.blocks().def.mode);
+  an.relax = hyb.relax_report();
+  if (const rigid::RigidWorld* w = hyb.world())
+    for (const rigid::BlockId id : w->blocks())
+      if (!w->fixed(id))
+        an.final_max_block_speed = std::max(an.final_max_block_speed, w->velocity(id).norm() +
+                                                                         w->angular_velocity(id).norm() *
+                                                                             w->half_extents(id).norm());
+  {
+    const auto& ps = sim.engine().particles();
+    double v2 = 0.0;
+    for (std::size_t i = 0; i < ps.owned(); ++i) v2 = std::max(v2, ps.v[i].squaredNorm());
+    if (comm.parallel()) comm.max(&v2, 1);
+    an.final_max_particle_speed = std::sqrt(v2);
+  }
   const double h_nominal = s.ice.has_consolidated_layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
   const double h_iso = sim.built().lattice_thickness > 0 ? sim.built().lattice_thickness : h_nominal;
   an.L_c = characteristic_length(s.material.youngs_modulus, h_iso, s.water.density, s.gravity.norm(),
@@ -135,10 +149,42 @@ void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
       {"freeze_bonds_handed_over", static_cast<double>(r.block_bonds_handed_over)},
       {"freeze_bonds_unmatched", static_cast<double>(r.block_bonds_unmatched)},
       {"freeze_bonds_broken", static_cast<double>(a.block_bonds_broken)},
+      {"final_max_block_speed", a.final_max_block_speed},
+      {"final_max_particle_speed", a.final_max_particle_speed},
   };
   for (const auto& [name, value] : figures) f.set_attribute(g, name, value);
   f.set_attribute(g, "description", std::string("rigid/particle hybrid: conversions, particles created, peak particle "
                                                 "count, wall time per part (s, rank 0), rigid step (s)"));
+}
+
+/// /analysis/relaxation: what the relaxation before the freeze did (docs/bridge.md, "Relaxation").
+void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
+  const std::string g = "/analysis/relaxation";
+  f.add_group(g);
+  const std::pair<const char*, double> figures[] = {
+      {"time", r.time},
+      {"steps", static_cast<double>(r.steps)},
+      {"rigid_steps", static_cast<double>(r.rigid_steps)},
+      {"converged", static_cast<double>(r.converged)},
+      {"max_block_speed", r.max_block_speed},
+      {"max_particle_speed", r.max_particle_speed},
+      {"block_kinetic_energy", r.block_kinetic_energy},
+      {"sheet_mean_dz", r.sheet_mean_dz},
+      {"sheet_max_abs_dz", r.sheet_max_dz},
+      {"sheet_peak_abs_mean_dz", r.sheet_peak_mean_dz},
+      {"lattice_bonds_broken", static_cast<double>(r.lattice_bonds_broken)},
+      {"max_time", r.def.max_time},
+      {"speed", r.def.speed},
+      {"hold", r.def.hold},
+      {"damping", r.def.damping},
+  };
+  for (const auto& [name, value] : figures) f.set_attribute(g, name, value);
+  f.set_attribute(g, "description",
+                  std::string("relaxation before the freeze joints and block-particle freeze bonds were made: "
+                              "simulated time (s) and steps, converged (1: every block and particle slower than "
+                              "speed for hold s), speeds at its end (m/s), block kinetic energy (J), the sheet's "
+                              "vertical displacement at its end (m: mean, largest |dz|, largest |mean| during it), "
+                              "lattice bonds broken in it; the run's t = 0 is its end"));
 }
 
 /// /analysis/iso: the results, every input (flat value attributes as before, and per input a
@@ -192,6 +238,7 @@ void write_analysis(const std::string& path, const RunReport& a) {
     f.set_attribute("/analysis/pieces", "characteristic_length_note", a.L_c_note);
   if (a.has_iso) write_iso(f, a);
   if (a.has_hybrid) write_hybrid(f, a);
+  if (a.relax.ran) write_relaxation(f, a.relax);
   f.flush();
 }
 

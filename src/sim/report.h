@@ -40,6 +40,10 @@ struct RunReport {
   bridge::HybridReport hybrid;
   std::uint64_t block_bonds_broken = 0;  ///< block-particle freeze bonds broken
   std::string conversion;                ///< the scene's conversion mode
+  bridge::RelaxReport relax;             ///< the relaxation before the freeze (relax.ran = 0: none)
+  /// At the end of the run (the at-rest check, docs/bridge.md "Relaxation"): fastest rigid block
+  /// (centre speed + |omega| x half diagonal) and fastest particle (all ranks), m/s.
+  double final_max_block_speed = 0.0, final_max_particle_speed = 0.0;
 };
 
 /// Analyses the finished run. Collective: every rank calls it; the particles and bonds are

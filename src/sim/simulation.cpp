@@ -1,8 +1,10 @@
 #include "sim/simulation.h"
 
+#include "common/error.h"
 #include "parallel/comm.h"
 
 #include <algorithm>
+#include <sstream>
 #include <cmath>
 
 namespace hs::sim {
@@ -56,8 +58,35 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
   if (!overlap.empty()) sim.blocks_.warnings.push_back(overlap);
   bridge::HybridDef def = sim.blocks_.def;
   if (!opt.convert) def.mode = bridge::ConversionMode::Never;  // count and check only
+  // The relaxation before the freeze (docs/bridge.md, "Relaxation"): only with blocks, before
+  // distribute() (every rank relaxes the whole scene alike, so 1 and N ranks start the same).
+  const bool relax = opt.relax && s.blocks.relax.enabled && !sim.blocks_.blocks.empty();
+  def.defer_freeze = relax;
   const auto& b = sim.blocks_;
   sim.hybrid_ = std::make_unique<bridge::HybridSystem>(e, def, b.blocks, b.joints, b.ice_joints);
+  if (relax) {
+    if (opt.restart_state) {
+      try {
+        sim.hybrid_->restore_relaxation(*opt.restart_state, "hybrid/");
+      } catch (const std::exception& ex) {
+        throw InputError("--restart", std::string("the checkpoint's relaxed ridge does not fit the scene as built: ") +
+                                          ex.what());
+      }
+    } else {
+      const auto& r = s.blocks.relax;
+      const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping}, opt.relax_progress);
+      if (rep.stopped) throw RelaxationStopped(rep.time);
+      if (!rep.converged) {
+        std::ostringstream w;
+        w << "/blocks/relax: the blocks and the sheet were not at rest after max_time = " << r.max_time
+          << " s of relaxation (fastest block " << rep.max_block_speed << " m/s, fastest particle "
+          << rep.max_particle_speed << " m/s; at rest means below speed = " << r.speed << " m/s for hold = " << r.hold
+          << " s); the joints and bonds were frozen there and the run starts from that state. Raise "
+             "/blocks/relax/max_time or set /blocks/relax/damping (e.g. 0.5)";
+        sim.blocks_.warnings.push_back(w.str());
+      }
+    }
+  }
   if (comm.parallel()) {  // every rank built the whole scene; each keeps its share
     bonded::ParallelDef pd;
     pd.grid = s.parallel.grid;

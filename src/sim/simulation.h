@@ -16,9 +16,13 @@
 
 #include <cstdint>
 #include <memory>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
+namespace hs {
+class StateArchive;
+}
 namespace hs::par {
 class Comm;
 }
@@ -49,6 +53,20 @@ struct BuildOptions {
   /// false: InputError at /ice, before anything is allocated, when memory_estimate (times the
   /// ranks) exceeds the machine's available memory (check_memory). --ignore-memory-limit.
   bool ignore_memory_limit = false;
+  /// false: no relaxation before the freeze whatever the scene says (`hybridsim check`).
+  bool relax = true;
+  /// Restart: the checkpoint's state (one rank's), whose relaxed rigid world replaces the
+  /// relaxation (HybridSystem::restore_relaxation).
+  const StateArchive* restart_state = nullptr;
+  /// Called every rigid step of the relaxation (progress lines); true stops it: build_simulation
+  /// then throws RelaxationStopped.
+  bridge::RelaxProgressFn relax_progress;
+};
+
+/// build_simulation was asked to stop during the relaxation (relax_progress returned true).
+struct RelaxationStopped : std::runtime_error {
+  explicit RelaxationStopped(double t) : std::runtime_error("stopped during the relaxation"), time(t) {}
+  double time;  ///< s of relaxation done
 };
 
 class Simulation {

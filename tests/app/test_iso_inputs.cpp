@@ -303,7 +303,7 @@ TEST(IsoInputs, ARidgeRunRecordsItsInputsAndTheReferenceScriptAgrees) {
     "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 1.5, "length": 4, "width": 2, "origin": [0, -1]},
     "structure": {"type": "pier", "position": [-8.5, 0, 0], "velocity": [0.5, 0, 0]},
-    "blocks": {"ridge_file": "run_keel.h5", "conversion": "never"}
+    "blocks": {"ridge_file": "run_keel.h5", "conversion": "never", "relax": false}
   })");
   json without_blocks = j;
   without_blocks.erase("blocks");

@@ -424,6 +424,38 @@ TEST(SceneBlocks, DefaultsAndErrors) {
   expect_bad("/parallel/balance_interval", -1, "/parallel/balance_interval", "must be >= 0");
 }
 
+TEST(SceneBlocks, Relax) {
+  // The relaxation before the freeze: on by default with a ridge file, off for a list alone
+  // (its initial velocities are the scene's), true / an object turns it on, false off.
+  json k = minimal();
+  k["blocks"] = json::parse(R"({"list": [{}]})");
+  const scene::Scene d = scene::parse_scene(k);
+  EXPECT_FALSE(d.blocks.relax.enabled);
+  k["blocks"]["relax"] = true;
+  EXPECT_TRUE(scene::parse_scene(k).blocks.relax.enabled);
+  EXPECT_EQ(d.blocks.relax.max_time, 30.0);
+  EXPECT_EQ(d.blocks.relax.speed, 0.002);
+  EXPECT_EQ(d.blocks.relax.hold, 1.0);
+  EXPECT_EQ(d.blocks.relax.damping, 0.0);
+  k["blocks"]["relax"] = false;
+  EXPECT_FALSE(scene::parse_scene(k).blocks.relax.enabled);
+  k["blocks"]["relax"] = json::parse(R"({"max_time": 12, "speed": 0.005, "hold": 0.5, "damping": 0.3})");
+  const scene::Scene r = scene::parse_scene(k);
+  EXPECT_TRUE(r.blocks.relax.enabled);
+  EXPECT_EQ(r.blocks.relax.max_time, 12.0);
+  EXPECT_EQ(r.blocks.relax.speed, 0.005);
+  EXPECT_EQ(r.blocks.relax.hold, 0.5);
+  EXPECT_EQ(r.blocks.relax.damping, 0.3);
+  k["blocks"]["relax"] = json::parse(R"({"max_tim": 12})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/relax/max_tim", "did you mean \"max_time\"");
+  k["blocks"]["relax"] = json::parse(R"({"speed": 0})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/relax/speed", "out of range");
+  k["blocks"]["relax"] = json::parse(R"({"damping": -1})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/relax/damping", "out of range");
+  k["blocks"]["relax"] = "yes";
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/relax", "");
+}
+
 TEST(SceneStructure, MeshFileRelativeToTheSceneFile) {
   namespace fs = std::filesystem;
   const fs::path d = fs::temp_directory_path() / ("hs_test_scene_mesh_" + std::to_string(::getpid()));

@@ -1,0 +1,161 @@
+// The relaxation before the freeze (docs/bridge.md, "Relaxation"): HybridSystem::relax,
+// restore_relaxation and freeze. The paper's set-up: the ridge settled, then released in water
+// under gravity and buoyancy so that the pre-stress of the settling is dissipated, then frozen.
+#include "bridge/hybrid.h"
+#include "bridge/hybrid_impl.h"
+
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace hs::bridge {
+
+namespace {
+
+/// Fastest point of a block: centre speed + |omega| x half diagonal (an upper bound).
+double block_speed(const rigid::RigidWorld& w, rigid::BlockId id) {
+  return w.velocity(id).norm() + w.angular_velocity(id).norm() * w.half_extents(id).norm();
+}
+
+}  // namespace
+
+bool HybridSystem::freeze_pending() const { return impl_->freeze_pending; }
+const RelaxReport& HybridSystem::relax_report() const { return impl_->relax; }
+double HybridSystem::block_bond_elastic_energy() const {
+  return world_ ? impl_->bonds.elastic_energy(engine_.particles(), engine_.def()) : 0.0;
+}
+
+const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressFn& progress) {
+  Impl& m = *impl_;
+  if (!m.freeze_pending) throw std::logic_error("HybridSystem::relax: nothing waits for a relaxation");
+  if (engine_.parallel()) throw std::logic_error("HybridSystem::relax: relax before Engine::distribute()");
+  if (!(def.max_time > 0.0) || !(def.speed > 0.0) || !(def.hold >= 0.0) || !(def.damping >= 0.0))
+    throw std::invalid_argument("HybridSystem::relax: max_time and speed must be > 0, hold and damping >= 0");
+  RelaxReport& R = m.relax;
+  R = RelaxReport{};
+  R.ran = 1;
+  R.def = def;
+  engine_.set_walls_parked(true);
+  auto& ps = engine_.particles();
+  // The sheet's heights at the start, by global id (the store is reordered at neighbour rebuilds).
+  GlobalId max_gid = 0;
+  for (std::size_t i = 0; i < ps.owned(); ++i) max_gid = std::max(max_gid, ps.gid[i]);
+  std::vector<double> z0(ps.owned() ? max_gid + 1 : 0, std::numeric_limits<double>::quiet_NaN());
+  for (std::size_t i = 0; i < ps.owned(); ++i) z0[ps.gid[i]] = ps.x[i].z();
+  const auto sheet_dz = [&](double& mean, double& max_abs) {
+    double sum = 0.0;
+    std::size_t n = 0;
+    max_abs = 0.0;
+    for (std::size_t i = 0; i < ps.owned(); ++i) {
+      if (ps.gid[i] >= z0.size() || std::isnan(z0[ps.gid[i]])) continue;
+      const double dz = ps.x[i].z() - z0[ps.gid[i]];
+      sum += dz;
+      max_abs = std::max(max_abs, std::abs(dz));
+      ++n;
+    }
+    mean = n ? sum / static_cast<double>(n) : 0.0;
+  };
+  const std::uint64_t broken0 = engine_.stats().bonds_broken;
+  const std::uint64_t k = report_.steps_per_rigid_step;
+  const double h = report_.rigid_dt, dt = engine_.dt();
+  const auto max_rigid = static_cast<std::uint64_t>(std::ceil(def.max_time / h - 1e-9));
+  const double fp = std::exp(-def.damping * dt), fb = std::exp(-def.damping * h);
+  RelaxProgress P;
+  for (std::uint64_t r = 0; r < max_rigid; ++r) {
+    for (std::uint64_t s = 0; s < k; ++s) {
+      step();
+      ++R.steps;
+      if (def.damping > 0.0)
+        for (std::size_t i = 0; i < ps.owned(); ++i) {
+          ps.v[i] *= fp;
+          ps.omega[i] *= fp;
+        }
+    }
+    ++R.rigid_steps;
+    if (def.damping > 0.0) {
+      for (const rigid::BlockId id : m.ids)
+        if (!world_->fixed(id)) world_->set_velocity(id, fb * world_->velocity(id), fb * world_->angular_velocity(id));
+      m.take_reference(*world_);
+    }
+    P.time = static_cast<double>(R.rigid_steps) * h;
+    P.max_block_speed = 0.0;
+    for (const rigid::BlockId id : m.ids)
+      if (!world_->fixed(id)) P.max_block_speed = std::max(P.max_block_speed, block_speed(*world_, id));
+    double v2 = 0.0;
+    for (std::size_t i = 0; i < ps.owned(); ++i) v2 = std::max(v2, ps.v[i].squaredNorm());
+    P.max_particle_speed = std::sqrt(v2);
+    P.block_kinetic_energy = world_->kinetic_energy();
+    P.quiet_time = P.max_block_speed < def.speed && P.max_particle_speed < def.speed ? P.quiet_time + h : 0.0;
+    double mean = 0.0, max_abs = 0.0;
+    sheet_dz(mean, max_abs);
+    R.sheet_peak_mean_dz = std::max(R.sheet_peak_mean_dz, std::abs(mean));
+    if (progress && progress(P)) {
+      R.stopped = 1;
+      break;
+    }
+    if (P.quiet_time >= def.hold - 1e-12) {
+      R.converged = 1;
+      break;
+    }
+  }
+  R.time = P.time;
+  R.max_block_speed = P.max_block_speed;
+  R.max_particle_speed = P.max_particle_speed;
+  R.block_kinetic_energy = P.block_kinetic_energy;
+  sheet_dz(R.sheet_mean_dz, R.sheet_max_dz);
+  R.lattice_bonds_broken = engine_.stats().bonds_broken - broken0;
+  if (R.stopped) return R;
+  m.relaxed_world.entries.clear();
+  world_->save_state(m.relaxed_world, "");
+  freeze();
+  return R;
+}
+
+void HybridSystem::restore_relaxation(const StateArchive& a, const std::string& p) {
+  Impl& m = *impl_;
+  if (!m.freeze_pending) return;
+  const std::string pre = p + "relaxed/";
+  if (!a.has(p + "relax_report"))
+    throw std::runtime_error("hybrid checkpoint: the scene relaxes its blocks but the checkpoint holds no relaxed "
+                             "state (written by a version without the relaxation?)");
+  m.relax = a.get_value<RelaxReport>(p + "relax_report");
+  m.relaxed_world.entries.clear();
+  for (const auto& [key, value] : a.entries)
+    if (key.compare(0, pre.size(), pre) == 0) m.relaxed_world.entries.emplace(key.substr(pre.size()), value);
+  world_->load_state(m.relaxed_world, "");
+  m.take_reference(*world_);
+  freeze();
+}
+
+void HybridSystem::freeze() {
+  Impl& m = *impl_;
+  m.freeze_pending = false;
+  engine_.set_walls_parked(false);
+  engine_.reset_clock();
+  world_->reset_clock();
+  if (m.def.has_structure) m.mesh = world_->add_kinematic_mesh(m.def.structure);
+  // A point given at the blocks' starting poses, carried with block k's motion since.
+  const auto moved = [&](std::size_t k, const Vec3& point) {
+    const rigid::BlockId id = m.pending_ids.at(k);
+    return Vec3(world_->position(id) + world_->orientation(id) * (m.q0[k].conjugate() * (point - m.x0[k])));
+  };
+  const auto turned = [&](std::size_t k, const Vec3& dir) {
+    return Vec3(world_->orientation(m.pending_ids.at(k)) * (m.q0[k].conjugate() * dir));
+  };
+  for (const auto& j : m.pending_joints)
+    world_->add_freeze_joint(rigid::FreezeJointDef{m.pending_ids.at(j.a), m.pending_ids.at(j.b), moved(j.a, j.anchor),
+                                                   turned(j.a, j.normal), j.area});
+  m.take_reference(*world_);
+  m.extrapolate(world_->time());
+  for (const auto& j : m.pending_ice_joints)
+    report_.ice_bonds_created += m.bonds.bond_patch(engine_.particles(), m.pending_ids.at(j.block).index,
+                                                    moved(j.block, j.anchor), turned(j.block, j.normal), j.area);
+  m.pending_joints.clear();
+  m.pending_ice_joints.clear();
+  if (m.def.mode == ConversionMode::AllAtStart) convert_all_at_start();
+  report_.rigid_steps = 0;  // the run's, from t = 0
+  report_.blocks_now = world_->block_count();
+  report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());
+}
+
+}  // namespace hs::bridge

@@ -1,0 +1,198 @@
+// The ridge at rest (issue 15, "Done when"; docs/bridge.md "Relaxation"), on a reduced ridge: a
+// 3 m keel of 36 blocks under a 13 x 5 m sheet with a consolidated layer, nothing pushing. After
+// the relaxation before the freeze, `hybridsim run` for 4 s in `never` and `hybrid` must break no
+// freeze joint and no block-particle freeze bond, convert nothing, end with every block and
+// particle slower than 0.01 m/s and leave the sheet's mean height within 2 cm of t = 0. The same
+// run with the relaxation off (blocks.relax = false) fails: the control below.
+#include <gtest/gtest.h>
+#include "cli_fixtures.h"
+#include <hdf5.h>
+
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <cmath>
+#include <thread>
+#include <fstream>
+#include <map>
+#include <string>
+#include <vector>
+
+extern char** environ;
+
+namespace fs = std::filesystem;
+
+namespace {
+
+fs::path work_dir() { return hs::testing::cli_work_dir("ridge_rest"); }
+hs::testing::CliResult hybridsim(const std::string& args) { return hs::testing::run_hybridsim(work_dir(), args); }
+void write(const std::string& name, const std::string& text) { std::ofstream(work_dir() / name) << text; }
+
+/// The reduced ridge (60 blocks, ~1 s) and the scene, once per process. The scene keeps the
+/// blocks whose centres lie in y = [1, 4] m: the generator settles the ridge between end walls at
+/// y = 0 and 5 m, and blocks at those ends, half outside the sheet, roll off it in the run.
+void make_scene() {
+  static bool made = false;
+  if (made) return;
+  write("small_ridge.json", R"({"name": "small_keel", "ridge": {
+      "level_ice_thickness": 0.65, "consolidated_layer_thickness": 1.0, "consolidated_layer_width": 4.0,
+      "level_ice_margin": 2.0, "ice_density": 920, "water_density": 1025, "keel_depth": 3.0,
+      "shoulder_slope_deg": 35.0, "sail_height": 0.0, "length": 5.0, "block_thickness": 0.5,
+      "aspect_lognormal": {"mu": 0.6, "sigma": 0.3, "of": "log"}, "max_tilt_deg": 20.0, "seed": 1,
+      "end_walls": false,
+      "settle": {"dt": 0.03333333333333333, "solver_iterations": 20, "kinetic_energy_per_block": 0.01,
+                 "max_time": 150.0, "compaction_friction": 0.0, "compaction_time": 30.0,
+                 "compaction_solver_iterations": 10, "damping": 5.0, "fixed_friction_directions": true}}})");
+  const auto r = hybridsim("ridge small_ridge.json -o small_ridge.h5");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  write("rest.json", R"({
+    "name": "small_rest",
+    "time": {"duration": 4.0, "output_interval": 0.1, "snapshot_interval": 4.0},
+    "material": {"density": 920, "youngs_modulus": 1e7, "poisson_ratio": 0.3, "particle_diameter": 0.4,
+                 "restitution": 0.3, "friction": 0.3, "stiffness_model": "calibrated", "flexural_strength": 5e4},
+    "bonds": {"damping_ratio": 0.1, "freeze_strength_fraction": 0.1},
+    "water": {"level": 0.0, "density": 1025, "linear_drag_per_area": 1000, "drag_coefficient": 1.0},
+    "ice": {"thickness": 0.65, "length": 13, "width": 5, "origin": [-6.5, 0],
+            "consolidated_layer": {"thickness": 1.0, "width": 4.0, "center_x": 0.0}},
+    "blocks": {"ridge_file": "small_ridge.h5", "density": 920, "keep_y": [1, 4]}
+  })");
+  made = true;
+}
+
+// ---- HDF5 reading
+std::vector<double> read_doubles(const fs::path& file, const std::string& dataset) {
+  std::vector<double> v;
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return v;
+  const hid_t d = H5Dopen2(f, dataset.c_str(), H5P_DEFAULT);
+  if (d >= 0) {
+    const hid_t s = H5Dget_space(d);
+    v.resize(static_cast<std::size_t>(H5Sget_simple_extent_npoints(s)));
+    if (!v.empty()) H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
+    H5Sclose(s);
+    H5Dclose(d);
+  }
+  H5Fclose(f);
+  return v;
+}
+
+double read_attribute(const fs::path& file, const std::string& object, const std::string& name) {
+  double v = NAN;
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return v;
+  const hid_t a = H5Aopen_by_name(f, object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT);
+  if (a >= 0) {
+    H5Aread(a, H5T_NATIVE_DOUBLE, &v);
+    H5Aclose(a);
+  }
+  H5Fclose(f);
+  return v;
+}
+
+/// The four at-rest figures of a run (docs/bridge.md, "Relaxation"; tools/rest_check.py).
+struct Rest {
+  double joints_broken = NAN, freeze_bonds_broken = NAN, conversions = NAN;
+  double max_block_speed = NAN, max_particle_speed = NAN;
+  double sheet_mean_dz = NAN;  ///< m, last snapshot - first (t = 0), particles matched by id
+};
+
+Rest rest_figures(const fs::path& file) {
+  Rest r;
+  const auto jb = read_doubles(file, "/series/blocks/joints_broken");
+  const auto cv = read_doubles(file, "/series/blocks/conversions");
+  if (!jb.empty()) r.joints_broken = jb.back();
+  if (!cv.empty()) r.conversions = cv.back();
+  r.freeze_bonds_broken = read_attribute(file, "/analysis/hybrid", "freeze_bonds_broken");
+  r.max_block_speed = read_attribute(file, "/analysis/hybrid", "final_max_block_speed");
+  const auto id0 = read_doubles(file, "/snapshots/000000/global_id");
+  const auto x0 = read_doubles(file, "/snapshots/000000/position");
+  const auto id1 = read_doubles(file, "/snapshots/000001/global_id");
+  const auto x1 = read_doubles(file, "/snapshots/000001/position");
+  const auto v1 = read_doubles(file, "/snapshots/000001/velocity");
+  std::map<double, double> z0;
+  for (std::size_t i = 0; i < id0.size(); ++i) z0[id0[i]] = x0[3 * i + 2];
+  double sum = 0.0, vmax = 0.0;
+  std::size_t n = 0;
+  for (std::size_t i = 0; i < id1.size(); ++i) {
+    vmax = std::max(vmax, std::sqrt(v1[3 * i] * v1[3 * i] + v1[3 * i + 1] * v1[3 * i + 1] + v1[3 * i + 2] * v1[3 * i + 2]));
+    const auto it = z0.find(id1[i]);
+    if (it == z0.end()) continue;
+    sum += x1[3 * i + 2] - it->second;
+    ++n;
+  }
+  r.max_particle_speed = vmax;
+  if (n) r.sheet_mean_dz = sum / static_cast<double>(n);
+  return r;
+}
+
+Rest run_mode(const std::string& mode, const std::string& extra = "") {
+  make_scene();
+  const std::string out = "rest_" + mode + (extra.empty() ? "" : "_off") + ".h5";
+  const auto r = hybridsim("run rest.json -o " + out + " --set blocks.conversion=" + mode + extra);
+  EXPECT_EQ(r.rc, 0) << r.err;
+  return rest_figures(work_dir() / out);
+}
+
+// Measured (never and hybrid alike: nothing converts): relaxation 7.2 s, at rest; after 4 s no
+// joint, freeze bond or lattice bond broken, fastest block 4.7e-5 m/s, fastest particle 1.2e-5
+// m/s, sheet mean dz -1.4e-5 m (largest |dz| 3.8e-5 m). Limits: the issue's (zero breaks,
+// 0.01 m/s, 2 cm).
+void expect_at_rest(const Rest& r, const std::string& what) {
+  EXPECT_EQ(r.joints_broken, 0.0) << what;
+  EXPECT_EQ(r.freeze_bonds_broken, 0.0) << what;
+  EXPECT_EQ(r.conversions, 0.0) << what;
+  EXPECT_LT(r.max_block_speed, 0.01) << what;
+  EXPECT_LT(r.max_particle_speed, 0.01) << what;
+  EXPECT_LT(std::abs(r.sheet_mean_dz), 0.02) << what;
+}
+
+TEST(RidgeRest, NeverStaysAtRest) { expect_at_rest(run_mode("never"), "never"); }
+
+TEST(RidgeRest, HybridStaysAtRest) { expect_at_rest(run_mode("hybrid"), "hybrid"); }
+
+TEST(RidgeRest, AllAtStartStaysAtRest) {
+  // Not yet: all_at_start relaxes the blocks as rigid bodies, freezes, then converts them all; the
+  // converted lattices are not in equilibrium (HCP packing vs box volume, Bullet's rest overlaps
+  // between blocks become particle overlaps, 12 of 36 blocks refused as thinner than D stay rigid
+  // among particles). Measured: 2 joints and 47 block-particle bonds broken, fastest particle
+  // 0.17 m/s, sheet mean dz -4.4e-4 m. Left for issue 15 (docs/bridge.md, "Relaxation").
+  GTEST_SKIP() << "all_at_start is not at rest after the conversion at t = 0 (see the comment)";
+}
+
+TEST(RidgeRest, ControlWithoutRelaxationIsNotAtRest) {
+  // The same scene in hybrid mode with blocks.relax = false: measured 51 of 56 freeze joints
+  // broken, sheet mean dz +3.03 cm (the keel's net buoyancy lifts it), fastest block 6.5e-3 m/s.
+  const Rest r = run_mode("hybrid", " --set blocks.relax=false");
+  EXPECT_GT(r.joints_broken, 5.0);
+  EXPECT_GT(std::abs(r.sheet_mean_dz), 0.02);
+}
+
+TEST(RidgeRest, SigintDuringTheRelaxationEndsCleanlyWithNothingWritten) {
+  // A stop during the relaxation: nothing has been written (the run file is made after it), so
+  // the run ends at the next rigid step with 128 + 2 and says so; no run file, no checkpoint.
+  make_scene();
+  fs::remove(work_dir() / "stopped.h5");
+  const std::string cmd = "cd '" + work_dir().string() + "' && exec '" HYBRIDSIM_EXE
+                          "' run rest.json -o stopped.h5 > stopped.out 2> stopped.err";
+  pid_t pid = -1;
+  const char* argv[] = {"/bin/sh", "-c", cmd.c_str(), nullptr};
+  ASSERT_EQ(posix_spawn(&pid, "/bin/sh", nullptr, nullptr, const_cast<char**>(argv), environ), 0);
+  // The relaxation takes ~9 s of wall time alone (7.2 s simulated); its progress line comes every 5 s.
+  const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(120);
+  while (hs::testing::slurp(work_dir() / "stopped.err").find("relax t =") == std::string::npos &&
+         std::chrono::steady_clock::now() < until)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  ::kill(pid, SIGINT);
+  int status = 0;
+  ASSERT_EQ(waitpid(pid, &status, 0), pid);
+  const std::string err = hs::testing::slurp(work_dir() / "stopped.err");
+  ASSERT_TRUE(WIFEXITED(status)) << err;
+  EXPECT_EQ(WEXITSTATUS(status), 130) << err;
+  EXPECT_NE(err.find("stopped by SIGINT during the relaxation before the freeze"), std::string::npos) << err;
+  EXPECT_FALSE(fs::exists(work_dir() / "stopped.h5"));
+  EXPECT_FALSE(fs::exists(work_dir() / "stopped.ckpt.h5"));
+}
+
+}  // namespace

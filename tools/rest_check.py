@@ -1,0 +1,65 @@
+#!/usr/bin/env python3
+"""The at-rest check of a run file (issue 15, docs/bridge.md "Relaxation"): freeze joints and
+block-particle freeze bonds broken, conversions, the fastest block and particle at the end, and
+the sheet's mean vertical displacement from t = 0 (first to last snapshot, particles matched by
+global id; --sheet N takes only ids < N, the particles built before any conversion).
+
+  /usr/bin/python3 tools/rest_check.py run.h5 [--sheet N] [--limits]
+
+With --limits it exits 1 unless: no joints or freeze bonds broken, no conversions (unless the run's
+mode is all_at_start), every block and particle slower than 0.01 m/s, |mean dz| < 0.02 m.
+"""
+import argparse
+import sys
+
+import h5py
+import numpy as np
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("run")
+    ap.add_argument("--sheet", type=int, default=None)
+    ap.add_argument("--limits", action="store_true")
+    a = ap.parse_args()
+    with h5py.File(a.run, "r") as f:
+        snaps = sorted(k for k in f["snapshots"].keys() if k.isdigit())
+        s0, s1 = f["snapshots"][snaps[0]], f["snapshots"][snaps[-1]]
+        g0, g1 = s0["global_id"][:].ravel(), s1["global_id"][:].ravel()
+        z0 = dict(zip(g0.tolist(), s0["position"][:, 2].tolist()))
+        x1, v1 = s1["position"][:], s1["velocity"][:]
+        keep = np.array([g in z0 and (a.sheet is None or g < a.sheet) for g in g1.tolist()])
+        dz = np.array([x1[k, 2] - z0[g] for k, g in enumerate(g1.tolist()) if keep[k]])
+        h = f["analysis/hybrid"].attrs
+        conv = h["conversion"] if "conversion" in h else "?"
+        conv = conv.decode() if isinstance(conv, bytes) else str(conv)
+        out = {
+            "mode": conv,
+            "t_end": float(s1.attrs["time"]) if "time" in s1.attrs else float("nan"),
+            "joints_broken": int(np.ravel(f["series/blocks/joints_broken"][-1])[0]),
+            "freeze_bonds_broken": int(h["freeze_bonds_broken"]),
+            "conversions": int(np.ravel(f["series/blocks/conversions"][-1])[0]),
+            "lattice_bonds_broken": int(np.ravel(f["series/bonds_broken"][-1])[0]),
+            "max_block_speed": float(h["final_max_block_speed"]),
+            "max_particle_speed": float(np.sqrt((v1 ** 2).sum(axis=1)).max()),
+            "sheet_mean_dz": float(dz.mean()) if dz.size else 0.0,
+            "sheet_max_abs_dz": float(np.abs(dz).max()) if dz.size else 0.0,
+        }
+        if "analysis/relaxation" in f:
+            r = f["analysis/relaxation"].attrs
+            out["relax_time"] = float(r["time"])
+            out["relax_converged"] = int(r["converged"])
+    for k, v in out.items():
+        print(f"{k:22s} {v}")
+    if a.limits:
+        ok = (out["joints_broken"] == 0 and out["freeze_bonds_broken"] == 0
+              and (out["conversions"] == 0 or out["mode"] == "all_at_start")
+              and out["max_block_speed"] < 0.01 and out["max_particle_speed"] < 0.01
+              and abs(out["sheet_mean_dz"]) < 0.02)
+        print("at rest:", "yes" if ok else "NO")
+        return 0 if ok else 1
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
