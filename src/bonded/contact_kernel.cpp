@@ -245,10 +245,12 @@ void Engine::pair_kernel_impl(const Tag& law) {
       const std::uint32_t i = p.i, j = p.j;
       const double rs = r[i] + r[j];
       const bool touch = (x[j] - x[i]).squaredNorm() < rs * rs;
+      // (a pair apart whose spring is already zero needs no store: most were apart before)
+      const bool spring = (p.xi.x() != 0.0) | (p.xi.y() != 0.0) | (p.xi.z() != 0.0);
       b.pair[m] = static_cast<std::uint32_t>(p0 + q);
       m += touch ? 1 : 0;
       apart[z] = static_cast<std::uint32_t>(p0 + q);
-      z += touch ? 0 : 1;
+      z += (!touch && spring) ? 1 : 0;
     }
     for (int k = 0; k < z; ++k) pairs[apart[k]].xi.setZero();  // contact over: the spring goes
     // 1b. the touching pairs' state

@@ -484,10 +484,15 @@ void Engine::field_forces() {
   const Vec3 g = def_.gravity;
   const double gmag = g.norm();
   const bool water = def_.water.enabled;
-  for (std::size_t i = 0; i < n; ++i) {
-    ps_.f[i] = ps_.mass[i] * g;
-    ps_.torque[i].setZero();
-  }
+  // The owned particles' gravity and zero torques may already be in place: step() sets them in
+  // its first loop, right after the kick has used the last step's forces (one pass over the
+  // store fewer), unless a neighbour rebuild (reorder, migration) came in between.
+  if (fields_preset_ != stats_.neighbor_rebuilds || n != fields_preset_n_)
+    for (std::size_t i = 0; i < n; ++i) {
+      ps_.f[i] = ps_.mass[i] * g;
+      ps_.torque[i].setZero();
+    }
+  fields_preset_ = ~std::uint64_t{0};
   for (std::size_t i = n; i < ps_.size(); ++i) {
     ps_.f[i].setZero();
     ps_.torque[i].setZero();
@@ -817,17 +822,23 @@ void Engine::step() {
   Vec3* x = ps_.x.data();
   Vec3* v = ps_.v.data();
   Vec3* w = ps_.omega.data();
-  const Vec3* f = ps_.f.data();
-  const Vec3* t = ps_.torque.data();
+  Vec3* fk = ps_.f.data();
+  Vec3* tk = ps_.torque.data();
   const double* im = ps_.inv_mass.data();
   const double* ii = ps_.inv_inertia.data();
+  const double* mass = ps_.mass.data();
+  const Vec3 g = def_.gravity;
   double disp2 = 0.0;
   for (std::size_t i = 0; i < n; ++i) {
-    v[i] += hdt * im[i] * f[i];
-    w[i] += hdt * ii[i] * t[i];
+    v[i] += hdt * im[i] * fk[i];
+    w[i] += hdt * ii[i] * tk[i];
     x[i] += dt * v[i];
     disp2 = std::max(disp2, (x[i] - x_at_build_[i]).squaredNorm());
+    fk[i] = mass[i] * g;  // this step's forces start here (field_forces)
+    tk[i].setZero();
   }
+  fields_preset_ = stats_.neighbor_rebuilds;
+  fields_preset_n_ = n;
   if (rotate)
     for (std::size_t i = 0; i < n; ++i) rotate_orientation(ps_.q[i], w[i], dt);
   if (!walls_parked_) {
@@ -849,8 +860,8 @@ void Engine::step() {
   n = ps_.owned();
   v = ps_.v.data();
   w = ps_.omega.data();
-  f = ps_.f.data();
-  t = ps_.torque.data();
+  const Vec3* f = ps_.f.data();
+  const Vec3* t = ps_.torque.data();
   im = ps_.inv_mass.data();
   ii = ps_.inv_inertia.data();
   double worst_v2 = 0.0;

@@ -502,6 +502,10 @@ class Engine {
   std::vector<mesh::MeshContact> mesh_contacts_;
   mesh::MeshQueryScratch mesh_scratch_;
   std::vector<Vec3> x_at_build_;
+  /// step() set the owned particles' gravity and zero torque at this rebuild count, for this
+  /// many owned particles (field_forces then skips that pass); ~0 = not set.
+  std::uint64_t fields_preset_ = ~std::uint64_t{0};
+  std::size_t fields_preset_n_ = 0;
   double max_disp2_ = INFINITY;
   bool forces_valid_ = false;
   bool need_rebuild_ = true;
