@@ -153,6 +153,7 @@ struct BlockItemDef {
   Quat orientation = Quat::Identity();
   Vec3 velocity = Vec3::Zero();      ///< m/s
   Vec3 angular_velocity = Vec3::Zero();  ///< rad/s, world
+  bool fixed = false;                ///< immovable (e.g. ice cover beside the particle sheet); never converts
 };
 
 /// Where blocks may turn into particles: a region that moves with the structure
@@ -183,6 +184,10 @@ struct BlocksDef {
   double safety_factor = 1.0;        ///< converts when utilisation x safety_factor >= 1
   double flexural_strength = 0.0;    ///< Pa; 0 = analysis.flexural_strength
   double stress_time_constant = 0.05;  ///< s, low-pass filter on the utilisation; 0 = none
+  /// Far sleep of the rigid world (docs/rigid.md, "Far sleep"); off unless blocks.far_sleep is given.
+  bool far_sleep = false;
+  double far_sleep_wake_distance = 2.0, far_sleep_speed = 0.01, far_sleep_still_time = 0.5;
+  bool far_sleep_start_asleep = false;
 };
 
 struct Scene {
