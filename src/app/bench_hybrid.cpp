@@ -29,6 +29,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <string>
 #include <sys/resource.h>
 
 namespace hs::app {
@@ -193,6 +194,19 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   j["setup_s"] = setup;
   j["peak_rss_mb"] = comm.max(u.ru_maxrss / 1024.0);
   j["ranks"] = comm.size();
+  // For tools/run_benchmarks.sh's CSV (`tools/run_benchmarks.sh hybrid`, with the ridge cached).
+  j["particle_steps_per_s"] =
+      static_cast<double>(sim.engine().global_particle_count()) * static_cast<double>(steps) / wall;
+  {
+    std::ifstream in("/proc/cpuinfo");
+    std::string line, cpu = "unknown";
+    while (std::getline(in, line))
+      if (line.rfind("model name", 0) == 0) {
+        cpu = line.substr(line.find(':') + 2);
+        break;
+      }
+    j["cpu"] = cpu;
+  }
   j["version"] = HYBRIDSIM_VERSION;
   return j;
 }

@@ -47,7 +47,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "rigid_dt", "conversion", "region", "safety_factor",
         "flexural_strength", "stress_time_constant", "far_sleep"}},
-      {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep"}},
+      {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
   };
@@ -518,6 +518,8 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
     b.far_sleep_still_time = f.number("still_time", b.far_sleep_still_time, Range::non_negative(), "s",
                                       "a block still this long (with its neighbours) falls asleep, e.g. 0.5");
     b.far_sleep_start_asleep = f.boolean("start_asleep", b.far_sleep_start_asleep);
+    b.far_sleep_wake_hops = f.integer<int>("wake_hops", b.far_sleep_wake_hops, {0.0, 1000.0}, "",
+                                           "blocks this many contacts or joints from a moving one are woken, e.g. 4");
   }
 }
 

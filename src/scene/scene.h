@@ -188,6 +188,7 @@ struct BlocksDef {
   bool far_sleep = false;
   double far_sleep_wake_distance = 2.0, far_sleep_speed = 0.01, far_sleep_still_time = 0.5;
   bool far_sleep_start_asleep = false;
+  int far_sleep_wake_hops = 4;
 };
 
 struct Scene {
