@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs the built-in benchmarks and keeps their figures per machine.
-#   tools/run_benchmarks.sh [NAME ...]        (default: granular bonded)
+#   tools/run_benchmarks.sh [NAME ...]        (default: granular bonded; `hybrid` needs the paper-size
+#                                             ridge cached once, see `hybridsim bench hybrid`'s message)
 #   RANKS=2 tools/run_benchmarks.sh           the same under mpirun -np 2 (strong scaling;
 #                                             the CSV name column becomes e.g. granular@2)
 # Prints each benchmark's JSON line and appends a CSV row to bench/results-<host>.csv

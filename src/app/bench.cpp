@@ -427,7 +427,7 @@ nlohmann::json bonded(const par::Comm& comm) {
 
 }  // namespace
 
-std::vector<std::string> benchmark_names() { return {"granular", "bonded"}; }
+std::vector<std::string> benchmark_names() { return {"granular", "bonded", "hybrid"}; }
 
 int run_benchmark(const std::string& name, std::ostream& out, std::ostream& err, const par::Comm& comm,
                   const BenchOptions& opt) {
@@ -439,8 +439,9 @@ int run_benchmark(const std::string& name, std::ostream& out, std::ostream& err,
   nlohmann::json j;
   if (name == "granular") j = granular(comm, opt);
   else if (name == "bonded") j = bonded(comm);
+  else if (name == "hybrid") j = hybrid_benchmark(comm, opt);
   else {
-    err << "error: unknown benchmark '" << name << "'; available: granular, bonded\n";
+    err << "error: unknown benchmark '" << name << "'; available: granular, bonded, hybrid\n";
     return 2;
   }
   out << j.dump() << std::endl;

@@ -3,6 +3,9 @@
 
 #include "parallel/comm.h"
 
+#include <nlohmann/json.hpp>
+
+#include <cstdint>
 #include <ostream>
 #include <string>
 #include <vector>
@@ -15,10 +18,19 @@ std::vector<std::string> benchmark_names();
 struct BenchOptions {
   /// granular: also write the settled pack as a LAMMPS data file here (tools/bench/granular.lmp).
   std::string lammps_data;
+  /// hybrid: the ridge file (default: ridge_paper_size_ridge.h5 in the cache directory).
+  std::string ridge;
+  /// hybrid: DEM steps timed (0 = 200).
+  std::uint64_t steps = 0;
+  /// hybrid: every block stepped at every rigid step (the far-sleep rule off), for comparison.
+  bool no_far_sleep = false;
 };
 
 /// Runs benchmark `name`, prints its JSON result (one object, one line) to `out`.
 /// Returns the process exit code (0 ok, 2 unknown name).
+/// `bench hybrid` (bench_hybrid.cpp).
+nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt);
+
 int run_benchmark(const std::string& name, std::ostream& out, std::ostream& err,
                   const par::Comm& comm = par::serial(), const BenchOptions& opt = {});
 

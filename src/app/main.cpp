@@ -109,6 +109,11 @@ int main(int argc, char** argv) {
   hs::app::BenchOptions bench_opt;
   bench->add_option("--lammps-data", bench_opt.lammps_data,
                     "granular: also write the settled pack as a LAMMPS data file (tools/bench/granular.lmp)");
+  bench->add_option("--ridge", bench_opt.ridge,
+                    "hybrid: ridge file (default: ridge_paper_size_ridge.h5 in $HYBRIDSIM_CACHE_DIR; see docs/rigid.md)");
+  bench->add_option("--steps", bench_opt.steps, "hybrid: DEM steps timed (default 200)");
+  bench->add_flag("--no-far-sleep", bench_opt.no_far_sleep,
+                  "hybrid: step every block at every rigid step (the far-sleep rule off), for comparison");
 
   try {
     app.parse(argc, argv);

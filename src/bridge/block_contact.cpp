@@ -72,11 +72,17 @@ std::size_t BlockContact::add_block(const ContactBlock& b) {
 void BlockContact::remove_block(std::size_t k) {
   blocks_.erase(blocks_.begin() + static_cast<std::ptrdiff_t>(k));
   loads_.erase(loads_.begin() + static_cast<std::ptrdiff_t>(k));
+  if (k < rot_.size()) rot_.erase(rot_.begin() + static_cast<std::ptrdiff_t>(k));
+  if (k < ext_.size()) ext_.erase(ext_.begin() + static_cast<std::ptrdiff_t>(k));
+  if (k < dirty_.size()) dirty_.erase(dirty_.begin() + static_cast<std::ptrdiff_t>(k));
 }
 
 void BlockContact::clear() {
   blocks_.clear();
   loads_.clear();
+  rot_.clear();
+  ext_.clear();
+  dirty_.clear();
   history_.clear();
   next_history_.clear();
 }
@@ -88,6 +94,7 @@ void BlockContact::set_state(std::size_t k, const Vec3& position, const Quat& or
   b.orientation = orientation.normalized();
   b.velocity = velocity;
   b.angular_velocity = angular_velocity;
+  if (k < dirty_.size()) dirty_[k] = 1;
 }
 
 void BlockContact::clear_impulses() {
@@ -97,22 +104,42 @@ void BlockContact::clear_impulses() {
   }
 }
 
-void BlockContact::build_grid(double r_max, std::size_t n_particles) {
-  const std::size_t nb = blocks_.size();
-  rot_.resize(nb);
-  std::vector<Vec3> lo(nb), hi(nb);
+void BlockContact::build_grid(double r_max, std::size_t n_particles, const Vec3& plo, const Vec3& phi) {
+  const std::size_t nall = blocks_.size();
+  rot_.resize(nall);
+  ext_.resize(nall);
+  dirty_.resize(nall, 1);
+  // Only blocks that reach the particles can touch one; a particle is tested against the blocks of
+  // its cell in increasing k either way, so leaving the others out changes no force.
+  near_.clear();
+  std::vector<Vec3> lo, hi;
   Vec3 glo = Vec3::Constant(INFINITY), ghi = Vec3::Constant(-INFINITY);
   double mean_size = 0.0;
-  for (std::size_t k = 0; k < nb; ++k) {
+  for (std::size_t k = 0; k < nall; ++k) {
     const ContactBlock& b = blocks_[k];
-    rot_[k] = b.orientation.toRotationMatrix();
-    // World AABB of the box, grown by the largest radius: |R| h.
-    const Vec3 e = rot_[k].cwiseAbs() * b.half_extents + Vec3::Constant(r_max);
-    lo[k] = b.position - e;
-    hi[k] = b.position + e;
-    glo = glo.cwiseMin(lo[k]);
-    ghi = ghi.cwiseMax(hi[k]);
+    if (dirty_[k]) {
+      rot_[k] = b.orientation.toRotationMatrix();
+      ext_[k] = rot_[k].cwiseAbs() * b.half_extents;  // world AABB half sizes: |R| h
+      dirty_[k] = 0;
+    }
+    const Vec3 e = ext_[k] + Vec3::Constant(r_max);  // grown by the largest radius
+    const Vec3 l = b.position - e, u = b.position + e;
+    if ((u.array() < plo.array()).any() || (l.array() > phi.array()).any()) continue;
+    near_.push_back(static_cast<std::uint32_t>(k));
+    lo.push_back(l);
+    hi.push_back(u);
+    glo = glo.cwiseMin(l);
+    ghi = ghi.cwiseMax(u);
     mean_size += 2.0 * e.maxCoeff();
+  }
+  const std::size_t nb = near_.size();
+  if (nb == 0) {
+    grid_lo_ = Vec3::Zero();
+    nx_ = ny_ = nz_ = 0;
+    cell_start_.assign(1, 0);
+    cell_blocks_.clear();
+    stats_.grid_cells = 0;
+    return;
   }
   mean_size /= static_cast<double>(nb);
   // Cells half the mean block size (in the broad-phase test a particle is then tested against 1.7
@@ -150,7 +177,7 @@ void BlockContact::build_grid(double r_max, std::size_t n_particles) {
             if (pass == 0)
               ++cell_start_[c + 1];
             else
-              cell_blocks_[fill[c]++] = static_cast<std::uint32_t>(k);
+              cell_blocks_[fill[c]++] = near_[k];
           }
     }
   }
@@ -177,8 +204,13 @@ bonded::ForceSourceResult BlockContact::add_forces(bonded::ParticleStore& ps, st
     return res;
   }
   double r_max = 0.0;
-  for (std::size_t i = 0; i < n_owned; ++i) r_max = std::max(r_max, ps.radius[i]);
-  build_grid(r_max, n_owned);
+  Vec3 plo = Vec3::Constant(INFINITY), phi = Vec3::Constant(-INFINITY);
+  for (std::size_t i = 0; i < n_owned; ++i) {
+    r_max = std::max(r_max, ps.radius[i]);
+    plo = plo.cwiseMin(ps.x[i]);
+    phi = phi.cwiseMax(ps.x[i]);
+  }
+  build_grid(r_max, n_owned, plo, phi);
 
   const bonded::EngineDef& def = ctx.def;
   const double hdt = ctx.history_dt;

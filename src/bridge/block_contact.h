@@ -130,7 +130,8 @@ class BlockContact final : public bonded::ForceSource {
       return std::hash<std::uint64_t>()(k.gid * 0x9E3779B97F4A7C15ull ^ (k.block + 0x632BE59BD9B4E019ull));
     }
   };
-  void build_grid(double r_max, std::size_t n_particles);
+  /// The grid of the blocks whose box, grown by r_max, meets the box [plo, phi] of the particles.
+  void build_grid(double r_max, std::size_t n_particles, const Vec3& plo, const Vec3& phi);
 
   std::vector<ContactBlock> blocks_;
   std::vector<BlockLoad> loads_;
@@ -138,12 +139,16 @@ class BlockContact final : public bonded::ForceSource {
   BlockContactStats stats_;
   bool record_ = false;
   std::vector<PointForce> recorded_;
-  // Block grid (rebuilt every call: O(blocks)): cell -> blocks whose box, grown by r_max, meets it.
+  // Block grid (rebuilt every call): cell -> blocks whose box, grown by r_max, meets it; only the
+  // blocks that reach the particles' bounding box are in it (a far ridge costs one box test each).
   Vec3 grid_lo_ = Vec3::Zero();
   double grid_h_ = 1.0;
   int nx_ = 0, ny_ = 0, nz_ = 0;
   std::vector<std::uint32_t> cell_start_, cell_blocks_;
   std::vector<Mat3> rot_;  ///< per block: R (body -> world) of the current orientation
+  std::vector<Vec3> ext_;    ///< per block: |R| h, the half sizes of its world box
+  std::vector<char> dirty_;  ///< per block: rot_ and ext_ are to be recomputed (set_state since)
+  std::vector<std::uint32_t> near_;  ///< scratch: the blocks in the grid
 };
 
 }  // namespace hs::bridge

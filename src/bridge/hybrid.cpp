@@ -211,6 +211,7 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   }
   if (def.has_structure) m.mesh = world_->add_kinematic_mesh(def.structure);
   const std::vector<rigid::BlockId> ids = add_blocks(blocks, joints);
+  for (const auto& b : blocks) m.wake_reach = std::max(m.wake_reach, b.def.half_extents.norm());
   m.take_reference(*world_);
   m.extrapolate(world_->time());
   for (const auto& j : ice_joints)
@@ -312,6 +313,19 @@ void HybridSystem::step() {
   m.coupler.sum_and_apply(engine_.comm(), *world_);
   report_.seconds_bridge += seconds_since(t1);
   const auto t2 = Clock::now();
+  if (m.def.world.far_sleep.enabled && m.def.mode == ConversionMode::Hybrid && m.mesh >= 0) {
+    // Far sleep: blocks that the conversion policy may look at stay awake (their loads are read).
+    const ConversionRegion& rg = m.def.region;
+    const Vec3 c = world_->mesh_position(m.mesh) + rg.offset;
+    const Vec3 half = rg.shape == ConversionRegion::Shape::Box ? rg.half_extents : Vec3(rg.radius, rg.radius, 0.0);
+    Vec3 lo = c - half, hi = c + half;
+    if (rg.shape == ConversionRegion::Shape::Cylinder) {
+      lo.z() = c.z() + rg.z_min;
+      hi.z() = c.z() + rg.z_max;
+    }
+    const Vec3 grow = Vec3::Constant(m.wake_reach + m.def.world.far_sleep.wake_distance);
+    world_->set_wake_boxes({{lo - grow, hi + grow}});
+  }
   world_->substep();
   ++report_.rigid_steps;
   m.take_reference(*world_);
@@ -532,6 +546,7 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
   m.contact.remove_block(k);
   m.ids.erase(it);
   m.ref.erase(m.ref.begin() + static_cast<std::ptrdiff_t>(k));
+  if (k < m.frozen.size()) m.frozen.erase(m.frozen.begin() + static_cast<std::ptrdiff_t>(k));
   world_->remove_block(id);
   m.coupler.reset(world_->blocks());
   ++report_.conversions;

@@ -44,19 +44,32 @@ struct HybridSystem::Impl {
   std::vector<Quat> q0;
   StateArchive relaxed_world;  ///< the rigid world at the end of the relaxation (checkpoints)
   RelaxReport relax;
+  /// Per block k: 1 when ref[k] has v = w = 0 and the contact and bonds already hold its pose
+  /// (extrapolation would set the same values again); cleared whenever ref[k] may change.
+  std::vector<char> frozen;
+  double wake_reach = 0.0;  ///< far sleep: largest block half diagonal (the region's wake box margin)
 
-  /// Reads every block's state from the world as the new kinematic reference.
+  /// Reads every block's state from the world as the new kinematic reference. A block that sleeps
+  /// (far sleep) and was frozen already has that reference: its pose is unchanged and v = w = 0.
   void take_reference(const rigid::RigidWorld& w) {
     ref.resize(ids.size());
-    for (std::size_t k = 0; k < ids.size(); ++k)
+    frozen.resize(ids.size(), 0);
+    for (std::size_t k = 0; k < ids.size(); ++k) {
+      if (frozen[k] && w.asleep(ids[k])) continue;
       ref[k] = {w.position(ids[k]), w.velocity(ids[k]), w.angular_velocity(ids[k]), w.orientation(ids[k])};
+      frozen[k] = 0;
+    }
     t_ref = w.time();
   }
   /// Moves the blocks the particles see to time t: x = x_r + v (t - t_r), q = exp(w (t - t_r)) q_r.
+  /// (A block at rest in its reference gets the same values every time: set once, then skipped.)
   void extrapolate(double t) {
     const double tau = t - t_ref;
+    frozen.resize(ids.size(), 0);
     for (std::size_t k = 0; k < ids.size(); ++k) {
       const Ref& r = ref[k];
+      if (frozen[k]) continue;
+      frozen[k] = r.v.isZero(0.0) && r.w.isZero(0.0);
       Quat q = r.q;
       const double angle = r.w.norm() * tau;
       if (angle > 0.0) q = (Quat(Eigen::AngleAxisd(angle, r.w.normalized())) * r.q).normalized();

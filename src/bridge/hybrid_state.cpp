@@ -46,6 +46,7 @@ void BlockContact::load_state(const StateArchive& a, const std::string& p) {
   next_history_.clear();
   for (const auto& r : a.get<ContactHistoryRecord>(p + "history")) history_.emplace(Key{r.gid, r.block}, r.xi);
   a.get_into(p + "rot", rot_);
+  dirty_.assign(blocks_.size(), 1);  // rot_ and ext_ recomputed from the restored poses
   recorded_.clear();
 }
 
@@ -162,6 +163,7 @@ std::size_t HybridSystem::load_state(const StateArchive& a, const std::string& p
   a.get_into(p + "u_filtered", m.u_filtered);
   a.get_into(p + "ref", m.ref);
   m.t_ref = a.get_value<double>(p + "t_ref");
+  m.frozen.assign(m.ref.size(), 0);
   if (!(m.ids == world_->blocks()) || m.ref.size() != m.ids.size() || m.contact.size() != m.ids.size())
     throw std::runtime_error("hybrid checkpoint: the blocks of the checkpoint and of the restored world differ");
   m.coupler.reset(world_->blocks());

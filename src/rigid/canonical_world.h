@@ -34,17 +34,28 @@ inline std::uint64_t body_key(const btCollisionObject* o) {
   return o->getUserIndex2() == kMeshTag ? (std::uint64_t{1} << 32) + idx : idx;
 }
 
-/// The dispatcher's manifolds sorted by (key of body 0, key of body 1).
-inline void sorted_manifolds(btDispatcher* d, std::vector<btPersistentManifold*>& out) {
+/// The dispatcher's manifolds for which keep(manifold) holds, sorted by (key of body 0, key of
+/// body 1). Two bodies share at most one manifold (box-box and box-mesh pairs each make one), so
+/// the keys are unique and filtering before or after the sort gives the same sequence.
+template <class Keep>
+void sorted_manifolds_if(btDispatcher* d, std::vector<btPersistentManifold*>& out, Keep keep) {
   out.clear();
   const int n = d->getNumManifolds();
-  out.reserve(static_cast<std::size_t>(n));
-  for (int k = 0; k < n; ++k) out.push_back(d->getManifoldByIndexInternal(k));
+  for (int k = 0; k < n; ++k) {
+    btPersistentManifold* m = d->getManifoldByIndexInternal(k);
+    if (keep(m)) out.push_back(m);
+  }
   std::sort(out.begin(), out.end(), [](const btPersistentManifold* a, const btPersistentManifold* b) {
     const std::uint64_t a0 = body_key(a->getBody0()), b0 = body_key(b->getBody0());
     if (a0 != b0) return a0 < b0;
     return body_key(a->getBody1()) < body_key(b->getBody1());
   });
+}
+
+/// The dispatcher's manifolds sorted by (key of body 0, key of body 1).
+inline void sorted_manifolds(btDispatcher* d, std::vector<btPersistentManifold*>& out) {
+  out.reserve(static_cast<std::size_t>(d->getNumManifolds()));
+  sorted_manifolds_if(d, out, [](const btPersistentManifold*) { return true; });
 }
 
 class CanonicalWorld final : public btDiscreteDynamicsWorld {
@@ -55,23 +66,33 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
   /// entries may be null for slots without a constraint).
   std::vector<btTypedConstraint*> joint_order;
 
+  /// True when RigidWorld decides which bodies sleep (its far-sleep rule, rigid_world.h): Bullet's
+  /// islands are then neither built nor used, and its deactivation timers are not run.
+  bool managed_sleep = false;
+
+  void calculateSimulationIslands() override {
+    if (!managed_sleep) btDiscreteDynamicsWorld::calculateSimulationIslands();
+  }
+  void updateActivationState(btScalar dt) override {
+    if (!managed_sleep) btDiscreteDynamicsWorld::updateActivationState(dt);
+  }
+
   void solveConstraints(btContactSolverInfo& info) override {
     btDispatcher* d = getDispatcher();
     // Sleeping and waking, as Bullet's buildAndProcessIslands does before it solves.
-    m_islandManager->buildIslands(d, this);
+    if (!managed_sleep) m_islandManager->buildIslands(d, this);
     auto awake = [](const btCollisionObject* o) {
       return !o->isStaticOrKinematicObject() && o->getActivationState() != ISLAND_SLEEPING;
     };
     bodies_.clear();
     for (int i = 0; i < m_nonStaticRigidBodies.size(); ++i)
       if (awake(m_nonStaticRigidBodies[i])) bodies_.push_back(m_nonStaticRigidBodies[i]);
-    sorted_manifolds(d, all_);
-    manifolds_.clear();
-    for (btPersistentManifold* m : all_) {
+    // (The same sequence as sorting all manifolds and filtering afterwards: the keys are unique.)
+    sorted_manifolds_if(d, manifolds_, [&](const btPersistentManifold* m) {
       const btCollisionObject* a = m->getBody0();
       const btCollisionObject* b = m->getBody1();
-      if ((awake(a) || awake(b)) && d->needsResponse(a, b)) manifolds_.push_back(m);
-    }
+      return (awake(a) || awake(b)) && d->needsResponse(a, b);
+    });
     constraints_.clear();
     for (btTypedConstraint* c : joint_order)
       if (c && c->isEnabled() && (awake(&c->getRigidBodyA()) || awake(&c->getRigidBodyB())))
@@ -88,7 +109,7 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
 
  private:
   std::vector<btCollisionObject*> bodies_;
-  std::vector<btPersistentManifold*> all_, manifolds_;
+  std::vector<btPersistentManifold*> manifolds_;
   std::vector<btTypedConstraint*> constraints_;
 };
 

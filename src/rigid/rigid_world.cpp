@@ -34,6 +34,9 @@ struct BlockSlot {
   // Caller loads, world frame, about the centre of mass.
   Vec3 ext_force = Vec3::Zero(), ext_torque = Vec3::Zero();
   Vec3 imp_linear = Vec3::Zero(), imp_angular = Vec3::Zero();
+  // Far sleep (RigidWorldDef::far_sleep).
+  bool asleep = false;
+  double still = 0.0;  // s the block and its neighbours have been still
 };
 
 struct MeshSlot {
@@ -42,6 +45,7 @@ struct MeshSlot {
   std::vector<btScalar> vertices;  // Bullet keeps pointers into these arrays
   std::vector<int> indices;
   std::vector<std::uint16_t> part;
+  Vec3 lo = Vec3::Zero(), hi = Vec3::Zero();  // bounding box of the vertices, mesh frame
   std::unique_ptr<btTriangleIndexVertexArray> array;
   std::unique_ptr<btBvhTriangleMeshShape> shape;
   std::unique_ptr<btRigidBody> body;
@@ -93,6 +97,18 @@ struct RigidWorld::Impl {
   std::vector<std::unique_ptr<MeshSlot>> meshes;
   double time = 0.0;
   std::uint64_t steps = 0;
+  // Far sleep.
+  std::vector<std::pair<Vec3, Vec3>> wake_boxes;
+  std::vector<char> moving, woken, reset, moving_seen;  // per block slot, scratch of update_sleep
+  std::vector<std::uint32_t> adj_start, adj, bfs_a, bfs_b;
+  std::size_t asleep_count = 0;
+  // contact_forces(): every block's contact forces of the last sub-step, built on first use.
+  std::vector<std::uint32_t> cf_start;
+  std::vector<std::pair<Vec3, Vec3>> cf_list;  // (point, force)
+  std::uint64_t cf_step = UINT64_MAX;
+  // joints_of(): intact joints by block slot, rebuilt when the joints changed (sync_joint_order).
+  std::uint64_t joints_version = 0, jo_version = UINT64_MAX;
+  std::vector<std::uint32_t> jo_start, jo_list;
 
   BlockSlot& block(BlockId id) {
     if (id.index >= blocks.size() || !blocks[id.index].alive ||
@@ -160,6 +176,7 @@ struct RigidWorld::Impl {
 
   /// The world solves joints in slot (creation) order, whatever order removals left its array in.
   void sync_joint_order() {
+    ++joints_version;
     world->joint_order.clear();
     for (const auto& jp : joints) world->joint_order.push_back(jp->constraint.get());
   }
@@ -168,6 +185,9 @@ struct RigidWorld::Impl {
     for (auto& jp : joints) {
       JointSlot& j = *jp;
       if (!j.alive || j.broken || !j.constraint) continue;
+      // Two sleeping blocks: the joint was not solved, its feedback and pose are unchanged since
+      // it was last checked (and held).
+      if (blocks[j.a.index].asleep && blocks[j.b.index].asleep) continue;
       const btRigidBody& ba = *blocks[j.a.index].body;
       const Vec3 n = from_bt(ba.getWorldTransform().getBasis() * to_bt(j.normal_in_a));
       const Vec3 fb = from_bt(j.feedback.m_appliedForceBodyB);
@@ -178,6 +198,130 @@ struct RigidWorld::Impl {
         j.broken = true;
         drop_constraint(j);
         ++broken_joints;
+      }
+    }
+  }
+
+  // ---- far sleep (RigidWorldDef::far_sleep) ----
+  // A sleeping block is a static object to Bullet (CF_STATIC_OBJECT: the solver meets it as an
+  // immovable body, it is neither integrated nor given gravity) and ISLAND_SLEEPING (its pairs
+  // with other sleeping blocks are not collided, its bounding box not updated); awake blocks are
+  // DISABLE_DEACTIVATION as without the rule. Bullet's own island sleeping is switched off
+  // (CanonicalWorld::managed_sleep).
+  void put_to_sleep(BlockSlot& s) {
+    btRigidBody& b = *s.body;
+    b.setLinearVelocity(btVector3(0, 0, 0));
+    b.setAngularVelocity(btVector3(0, 0, 0));
+    b.setCollisionFlags(b.getCollisionFlags() | btCollisionObject::CF_STATIC_OBJECT);
+    b.forceActivationState(ISLAND_SLEEPING);
+    world->updateSingleAabb(&b);  // a static box at its pose (a restored world computes the same)
+    s.asleep = true;
+    ++asleep_count;
+  }
+  void wake(BlockSlot& s) {
+    s.still = 0.0;
+    if (!s.asleep) return;
+    btRigidBody& b = *s.body;
+    b.setCollisionFlags(b.getCollisionFlags() & ~btCollisionObject::CF_STATIC_OBJECT);
+    b.forceActivationState(DISABLE_DEACTIVATION);
+    s.asleep = false;
+    --asleep_count;
+  }
+  bool block_moving(const BlockSlot& s) const {
+    const double v = def.far_sleep.speed;
+    const btRigidBody& b = *s.body;
+    return b.getLinearVelocity().length2() > v * v ||
+           b.getAngularVelocity().length2() * s.half.squaredNorm() > v * v;
+  }
+  bool in_wake_zone(const Vec3& c) const {
+    const double d = def.far_sleep.wake_distance;
+    for (const auto& mp : meshes) {
+      const Vec3 lo = mp->origin + mp->lo - Vec3::Constant(d), hi = mp->origin + mp->hi + Vec3::Constant(d);
+      if ((c.array() >= lo.array()).all() && (c.array() <= hi.array()).all()) return true;
+    }
+    for (const auto& [lo, hi] : wake_boxes)
+      if ((c.array() >= lo.array()).all() && (c.array() <= hi.array()).all()) return true;
+    return false;
+  }
+  static bool is_block(const btCollisionObject* o) { return o->getUserIndex2() != kMeshTag; }
+
+  // The far-sleep rule (rigid_world.h) on the state at the start of a sub-step. Every decision is
+  // taken from that state (flags first, then applied), so the order of the loops does not matter.
+  void update_sleep(double h) {
+    const std::size_t n = blocks.size();
+    moving.assign(n, 0);
+    woken.assign(n, 0);
+    reset.assign(n, 0);
+    for (std::size_t k = 0; k < n; ++k) {
+      const BlockSlot& s = blocks[k];
+      if (!s.alive || s.fixed) continue;
+      if (!s.asleep) moving[k] = block_moving(s);
+      const bool loaded = !s.ext_force.isZero(0.0) || !s.ext_torque.isZero(0.0) || !s.imp_linear.isZero(0.0) ||
+                          !s.imp_angular.isZero(0.0);
+      if (loaded || in_wake_zone(from_bt(s.body->getWorldTransform().getOrigin()))) woken[k] = 1;
+    }
+    // The neighbour graph: blocks touching (a manifold with a point) or jointed (intact joint).
+    adj_start.assign(n + 1, 0);
+    auto for_each_edge = [&](auto&& f) {
+      const int nm = dispatcher->getNumManifolds();
+      for (int k = 0; k < nm; ++k) {
+        const btPersistentManifold* man = dispatcher->getManifoldByIndexInternal(k);
+        if (man->getNumContacts() == 0 || !is_block(man->getBody0()) || !is_block(man->getBody1())) continue;
+        const auto a = static_cast<std::size_t>(man->getBody0()->getUserIndex());
+        const auto b = static_cast<std::size_t>(man->getBody1()->getUserIndex());
+        if (!blocks[a].fixed && !blocks[b].fixed) f(a, b);
+      }
+      for (const auto& jp : joints) {
+        const JointSlot& j = *jp;
+        if (!j.alive || j.broken || !j.constraint) continue;
+        if (!blocks[j.a.index].fixed && !blocks[j.b.index].fixed) f(j.a.index, j.b.index);
+      }
+    };
+    for_each_edge([&](std::size_t a, std::size_t b) {
+      ++adj_start[a + 1];
+      ++adj_start[b + 1];
+    });
+    for (std::size_t k = 0; k < n; ++k) adj_start[k + 1] += adj_start[k];
+    adj.resize(adj_start[n]);
+    {
+      std::vector<std::uint32_t> fill(adj_start.begin(), adj_start.end() - 1);
+      for_each_edge([&](std::size_t a, std::size_t b) {
+        adj[fill[a]++] = static_cast<std::uint32_t>(b);
+        adj[fill[b]++] = static_cast<std::uint32_t>(a);
+      });
+    }
+    // Every block within wake_hops contacts or joints of a moving block (or of one the caller loads
+    // now) is woken, or kept from falling asleep: the solver carries an impulse a few blocks per
+    // sub-step, and a sleeping block on its way would stop it like a wall. Breadth first, level by
+    // level, so the order of the graph does not matter.
+    std::vector<std::uint32_t>& front = bfs_a;
+    std::vector<std::uint32_t>& next = bfs_b;
+    front.clear();
+    for (std::size_t k = 0; k < n; ++k)
+      if (moving[k] || woken[k]) front.push_back(static_cast<std::uint32_t>(k));
+    std::vector<char>& seen = moving_seen;
+    seen.assign(n, 0);
+    for (const std::uint32_t k : front) seen[k] = 1;
+    for (int hop = 0; hop < def.far_sleep.wake_hops && !front.empty(); ++hop) {
+      next.clear();
+      for (const std::uint32_t a : front)
+        for (std::uint32_t e = adj_start[a]; e < adj_start[a + 1]; ++e) {
+          const std::uint32_t b = adj[e];
+          if (seen[b]) continue;
+          seen[b] = 1;
+          (blocks[b].asleep ? woken[b] : reset[b]) = 1;
+          next.push_back(b);
+        }
+      std::swap(front, next);
+    }
+    for (std::size_t k = 0; k < n; ++k) {
+      BlockSlot& s = blocks[k];
+      if (!s.alive || s.fixed) continue;
+      if (woken[k] || reset[k] || moving[k]) {
+        wake(s);
+      } else if (!s.asleep) {
+        s.still += h;
+        if (s.still >= def.far_sleep.still_time) put_to_sleep(s);
       }
     }
   }
@@ -195,7 +339,11 @@ struct RigidWorld::Impl {
       L.contacts = 0;
     }
     if (meshes.empty()) return;
-    detail::sorted_manifolds(dispatcher.get(), manifolds_scratch);  // a fixed summation order
+    detail::sorted_manifolds_if(dispatcher.get(), manifolds_scratch,  // a fixed summation order
+                                [](const btPersistentManifold* man) {
+                                  return (man->getBody0()->getUserIndex2() == kMeshTag) !=
+                                         (man->getBody1()->getUserIndex2() == kMeshTag);
+                                });
     for (const btPersistentManifold* man : manifolds_scratch) {
       const btCollisionObject* b0 = man->getBody0();
       const btCollisionObject* b1 = man->getBody1();
@@ -256,6 +404,20 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   if (!(def.split_impulse_depth >= 0.0)) throw InputError("rigid/split_impulse_depth", "must be >= 0 (m)");
   m.world->getSolverInfo().m_splitImpulse = true;
   m.world->getSolverInfo().m_splitImpulsePenetrationThreshold = -def.split_impulse_depth;
+  if (def.far_sleep.enabled) {
+    const auto& fs = def.far_sleep;
+    if (def.allow_sleep)
+      throw InputError("rigid/far_sleep", "far sleep and Bullet's island sleeping (allow_sleep) exclude each other");
+    if (!(fs.wake_distance >= 0.0) || !std::isfinite(fs.wake_distance))
+      throw InputError("rigid/far_sleep/wake_distance", "must be a finite distance >= 0 (m)");
+    if (!(fs.speed > 0.0) || !std::isfinite(fs.speed))
+      throw InputError("rigid/far_sleep/speed", "must be a finite speed > 0 (m/s)");
+    if (fs.wake_hops < 0) throw InputError("rigid/far_sleep/wake_hops", "must be >= 0");
+    if (!(fs.still_time >= 0.0) || !std::isfinite(fs.still_time))
+      throw InputError("rigid/far_sleep/still_time", "must be a finite time >= 0 (s)");
+    m.world->managed_sleep = true;
+    m.world->setForceUpdateAllAabbs(false);  // sleeping blocks keep theirs
+  }
   if (def.fixed_friction_directions)
     m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |
                                              SOLVER_ENABLE_FRICTION_DIRECTION_CACHING |
@@ -326,8 +488,11 @@ BlockId RigidWorld::add_block(const BlockDef& d) {
       s.body->setSleepingThresholds(m.def.sleep_linear_velocity, m.def.sleep_angular_velocity);
   }
   s.body->setUserIndex(static_cast<int>(idx));
+  s.asleep = false;
+  s.still = m.def.far_sleep.enabled && m.def.far_sleep.start_asleep ? m.def.far_sleep.still_time : 0.0;
   m.world->addRigidBody(s.body.get());
   ++m.block_count;
+  m.cf_step = UINT64_MAX;
   return BlockId{idx, s.generation};
 }
 
@@ -342,6 +507,10 @@ void RigidWorld::remove_block(BlockId id) {
   s.body.reset();
   s.shape.reset();
   s.alive = false;
+  if (s.asleep) --m.asleep_count;
+  s.asleep = false;
+  s.still = 0.0;
+  m.cf_step = UINT64_MAX;
   ++s.generation;
   s.ext_force.setZero();
   s.ext_torque.setZero();
@@ -382,8 +551,9 @@ void RigidWorld::substep() {
   wp.linear_drag = m.def.linear_drag;
   wp.drag_coefficient = m.def.quadratic_drag_cd;
   wp.current = m.def.water_current;
+  if (m.def.far_sleep.enabled) m.update_sleep(h);
   for (BlockSlot& s : m.blocks) {
-    if (!s.alive || s.fixed) continue;
+    if (!s.alive || s.fixed || s.asleep) continue;
     btRigidBody& b = *s.body;
     if (!s.imp_linear.isZero(0.0) || !s.imp_angular.isZero(0.0)) {
       b.applyCentralImpulse(to_bt(s.imp_linear));
@@ -444,6 +614,7 @@ bool RigidWorld::fixed(BlockId id) const { return impl_->block(id).fixed; }
 void RigidWorld::set_velocity(BlockId id, const Vec3& v, const Vec3& w) {
   BlockSlot& s = impl_->block(id);
   if (s.fixed) return;
+  if (s.asleep) impl_->wake(s);
   s.body->setLinearVelocity(to_bt(v));
   s.body->setAngularVelocity(to_bt(w));
 }
@@ -489,6 +660,16 @@ void RigidWorld::add_impulse(BlockId id, const Vec3& j, const Vec3& point) {
   s.imp_angular += (point - c).cross(j);
 }
 
+void RigidWorld::set_wake_boxes(const std::vector<std::pair<Vec3, Vec3>>& boxes) { impl_->wake_boxes = boxes; }
+
+bool RigidWorld::asleep(BlockId id) const { return impl_->block(id).asleep; }
+
+std::size_t RigidWorld::awake_count() const {
+  std::size_t n = 0;
+  for (const BlockSlot& s : impl_->blocks) n += s.alive && !s.fixed;
+  return n - impl_->asleep_count;
+}
+
 double RigidWorld::kinetic_energy() const {
   double e = 0.0;
   for (const BlockSlot& s : impl_->blocks) {
@@ -525,6 +706,11 @@ int RigidWorld::add_kinematic_mesh(const KinematicMeshDef& d) {
     }
   }
   ms->part = d.triangle_part;
+  ms->lo = ms->hi = d.vertices.front();
+  for (const Vec3& v : d.vertices) {
+    ms->lo = ms->lo.cwiseMin(v);
+    ms->hi = ms->hi.cwiseMax(v);
+  }
   for (std::uint16_t p : ms->part)
     if (p >= d.part_count) throw InputError("structure/mesh", "triangle part out of range");
   btIndexedMesh im;
@@ -561,35 +747,87 @@ Vec3 RigidWorld::mesh_position(int k) const { return impl_->meshes.at(k)->origin
 const MeshLoad& RigidWorld::mesh_load(int k) const { return impl_->meshes.at(k)->load; }
 
 std::vector<RigidWorld::ContactForce> RigidWorld::contact_forces(BlockId id) const {
-  const Impl& m = *impl_;
-  const btRigidBody* body = impl_->block(id).body.get();
-  std::vector<ContactForce> out;
-  const double h = m.def.dt;
-  std::vector<btPersistentManifold*> sorted;  // a fixed order (canonical_world.h)
-  detail::sorted_manifolds(m.dispatcher.get(), sorted);
-  for (const btPersistentManifold* man : sorted) {
-    const bool is0 = man->getBody0() == body, is1 = man->getBody1() == body;
-    if (!is0 && !is1) continue;
-    const double sign = is0 ? 1.0 : -1.0;  // Bullet applies +impulse to body 0
-    for (int c = 0; c < man->getNumContacts(); ++c) {
-      const btManifoldPoint& p = man->getContactPoint(c);
-      if (p.m_appliedImpulse == 0.0 && p.m_appliedImpulseLateral1 == 0.0 && p.m_appliedImpulseLateral2 == 0.0)
-        continue;
-      const Vec3 j = from_bt(p.m_normalWorldOnB * p.m_appliedImpulse +
-                             p.m_lateralFrictionDir1 * p.m_appliedImpulseLateral1 +
-                             p.m_lateralFrictionDir2 * p.m_appliedImpulseLateral2);
-      out.push_back({from_bt(is0 ? p.getPositionWorldOnA() : p.getPositionWorldOnB()), sign * j / h});
+  Impl& m = *impl_;
+  m.block(id);  // throws for a stale id
+  // Every block's list at once, on the first call after a sub-step (the conversion policy asks for
+  // many blocks; walking all manifolds per block cost O(blocks x manifolds)). A block's forces come
+  // in the order of a walk over the manifolds sorted by their bodies (canonical_world.h).
+  if (m.cf_step != m.steps) {
+    const double h = m.def.dt;
+    detail::sorted_manifolds(m.dispatcher.get(), m.manifolds_scratch);
+    const std::size_t n = m.blocks.size();
+    m.cf_start.assign(n + 1, 0);
+    auto live = [](const btManifoldPoint& p) {
+      return !(p.m_appliedImpulse == 0.0 && p.m_appliedImpulseLateral1 == 0.0 && p.m_appliedImpulseLateral2 == 0.0);
+    };
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<std::uint32_t> fill;
+      if (pass == 1) {
+        for (std::size_t k = 0; k < n; ++k) m.cf_start[k + 1] += m.cf_start[k];
+        m.cf_list.resize(m.cf_start[n]);
+        fill.assign(m.cf_start.begin(), m.cf_start.end() - 1);
+      }
+      for (const btPersistentManifold* man : m.manifolds_scratch) {
+        for (int side = 0; side < 2; ++side) {
+          const btCollisionObject* o = side == 0 ? man->getBody0() : man->getBody1();
+          if (!Impl::is_block(o)) continue;
+          const auto k = static_cast<std::size_t>(o->getUserIndex());
+          const double sign = side == 0 ? 1.0 : -1.0;  // Bullet applies +impulse to body 0
+          for (int c = 0; c < man->getNumContacts(); ++c) {
+            const btManifoldPoint& p = man->getContactPoint(c);
+            if (!live(p)) continue;
+            if (pass == 0) {
+              ++m.cf_start[k + 1];
+              continue;
+            }
+            const Vec3 j = from_bt(p.m_normalWorldOnB * p.m_appliedImpulse +
+                                   p.m_lateralFrictionDir1 * p.m_appliedImpulseLateral1 +
+                                   p.m_lateralFrictionDir2 * p.m_appliedImpulseLateral2);
+            m.cf_list[fill[k]++] = {from_bt(side == 0 ? p.getPositionWorldOnA() : p.getPositionWorldOnB()),
+                                    sign * j / h};
+          }
+        }
+      }
     }
+    m.cf_step = m.steps;
   }
+  std::vector<ContactForce> out;
+  for (std::uint32_t e = m.cf_start[id.index]; e < m.cf_start[id.index + 1]; ++e)
+    out.push_back({m.cf_list[e].first, m.cf_list[e].second});
   return out;
 }
 
 std::vector<JointId> RigidWorld::joints_of(BlockId id) const {
+  Impl& m = *impl_;
+  // An index of every block's intact joints (slot order), rebuilt after the joints changed: the
+  // conversion policy asks for many blocks, and a walk over all joints per block was O(blocks x joints).
+  if (m.jo_version != m.joints_version) {
+    const std::size_t n = m.blocks.size();
+    m.jo_start.assign(n + 1, 0);
+    for (int pass = 0; pass < 2; ++pass) {
+      std::vector<std::uint32_t> fill;
+      if (pass == 1) {
+        for (std::size_t k = 0; k < n; ++k) m.jo_start[k + 1] += m.jo_start[k];
+        m.jo_list.resize(m.jo_start[n]);
+        fill.assign(m.jo_start.begin(), m.jo_start.end() - 1);
+      }
+      for (std::uint32_t k = 0; k < m.joints.size(); ++k) {
+        const JointSlot& j = *m.joints[k];
+        if (!j.alive || j.broken) continue;
+        for (const std::uint32_t b : {j.a.index, j.b.index}) {
+          if (b >= n) continue;
+          if (pass == 0) ++m.jo_start[b + 1];
+          else m.jo_list[fill[b]++] = k;
+        }
+      }
+    }
+    m.jo_version = m.joints_version;
+  }
   std::vector<JointId> out;
-  const Impl& m = *impl_;
-  for (std::uint32_t k = 0; k < m.joints.size(); ++k) {
-    const JointSlot& j = *m.joints[k];
-    if (j.alive && !j.broken && (j.a == id || j.b == id)) out.push_back(JointId{k, j.generation});
+  if (id.index + 1 >= m.jo_start.size()) return out;
+  for (std::uint32_t e = m.jo_start[id.index]; e < m.jo_start[id.index + 1]; ++e) {
+    const JointSlot& j = *m.joints[m.jo_list[e]];
+    if (j.alive && !j.broken && (j.a == id || j.b == id)) out.push_back(JointId{m.jo_list[e], j.generation});
   }
   return out;
 }
@@ -872,6 +1110,11 @@ void RigidWorld::save_state(StateArchive& a, const std::string& p) const {
   }
   a.put(p + "manifolds", manifolds);
   a.put(p + "manifold_points", points);
+  if (m.def.far_sleep.enabled) {  // the sleeping flag is the saved activation state (ISLAND_SLEEPING)
+    std::vector<double> still(m.blocks.size(), 0.0);
+    for (std::size_t k = 0; k < m.blocks.size(); ++k) still[k] = m.blocks[k].still;
+    a.put(p + "sleep_still", still);
+  }
   a.put_value(p + "time", m.time);
   a.put_value(p + "steps", m.steps);
   const std::uint64_t counts[3] = {m.block_count, m.intact_joints, m.broken_joints};
@@ -924,6 +1167,22 @@ std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) 
     }
   }
   m.free_blocks = a.get<std::uint32_t>(p + "free_blocks");
+  // Far sleep: every block awake for the collision pass below (sleeping pairs would make no
+  // manifolds), put back to sleep after it.
+  std::vector<char> was_asleep(m.blocks.size(), 0);
+  if (m.def.far_sleep.enabled) {
+    const auto still = a.get<double>(p + "sleep_still");
+    if (still.size() != m.blocks.size()) throw std::runtime_error("rigid world checkpoint: far-sleep timers missing");
+    for (std::size_t k = 0; k < m.blocks.size(); ++k) {
+      BlockSlot& s = m.blocks[k];
+      if (!s.alive || s.fixed) continue;
+      was_asleep[k] = s.body->getActivationState() == ISLAND_SLEEPING;
+      if (s.asleep) m.wake(s);
+      s.body->forceActivationState(DISABLE_DEACTIVATION);
+      s.still = still[k];
+    }
+  }
+  m.cf_step = UINT64_MAX;
   const auto loads = a.get<Vec3>(p + "mesh_loads");
   const auto contacts = a.get<std::uint64_t>(p + "mesh_contacts");
   std::size_t o = 0;
@@ -975,6 +1234,12 @@ std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) 
       man->getContactPoint(idx).m_userPersistentData = nullptr;
     }
   }
+  for (std::size_t k = 0; k < m.blocks.size(); ++k)
+    if (was_asleep[k]) {
+      const double still = m.blocks[k].still;
+      m.put_to_sleep(m.blocks[k]);  // (velocities: zero, as saved)
+      m.blocks[k].still = still;
+    }
   std::size_t lost = 0;
   for (std::size_t k = 0; k < saved.size(); ++k)
     if (!used[k]) lost += saved[k].points;

@@ -21,6 +21,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace hs {
@@ -111,6 +112,31 @@ struct RigidWorldDef {
   /// defaults); an island sleeps when all its bodies stayed candidates for 2 s.
   double sleep_linear_velocity = 0.8;   ///< m/s
   double sleep_angular_velocity = 1.0;  ///< rad/s
+
+  /// Far sleep (docs/rigid.md, "Far sleep"): blocks far from anything that moves are not stepped.
+  /// The rule, evaluated at the start of every sub-step from the world's own (replicated) state, so
+  /// that every rank and a restarted run make the same decisions:
+  ///   a block is kept awake while its centre lies within `wake_distance` of a kinematic mesh's
+  ///   bounding box or inside a caller's wake box (set_wake_boxes), or the caller has loaded it
+  ///   (add_force / add_impulse / set_velocity); a sleeping block wakes when a block it touches
+  ///   (a contact point) or is jointed to, up to `wake_hops` contacts or joints away, moves faster
+  ///   than `speed` or is loaded by the caller; an awake block falls asleep when no such block is
+  ///   within `wake_hops` and it stayed slower than `speed` for `still_time`.
+  /// Moving: |v| > speed or |w| |half extents| > speed. A sleeping block keeps its pose, has zero
+  /// velocity, gets no gravity or water load, and meets awake blocks as an immovable one.
+  /// Off (the default): every block is stepped at every sub-step, as Bullet's DISABLE_DEACTIVATION.
+  /// Exclusive with allow_sleep (Bullet's own island sleeping).
+  struct FarSleep {
+    bool enabled = false;
+    double wake_distance = 2.0;  ///< m
+    double speed = 0.01;         ///< m/s
+    double still_time = 0.5;     ///< s
+    /// Blocks within this many contacts or joints of a moving (or caller-loaded) block are woken.
+    int wake_hops = 4;
+    /// Blocks start asleep (as if still for still_time already) unless the rule wakes them at the
+    /// first sub-step: for a ridge at rest as generated, whose far part should not be stepped at all.
+    bool start_asleep = false;
+  } far_sleep;
 };
 
 struct BlockDef {
@@ -218,6 +244,14 @@ class RigidWorld {
   /// Impulse (N s) at a world point, applied once at the start of the next sub-step
   /// (the bridge pours accumulated particle impulses in here).
   void add_impulse(BlockId id, const Vec3& j, const Vec3& point);
+
+  /// Far sleep (RigidWorldDef::far_sleep): boxes (lo, hi corners, world) whose blocks (by centre)
+  /// never sleep, e.g. the conversion region; replaces the previous set. Used from the next sub-step.
+  void set_wake_boxes(const std::vector<std::pair<Vec3, Vec3>>& boxes);
+  /// True while block `id` sleeps (far sleep; never without it).
+  bool asleep(BlockId id) const;
+  /// Dynamic blocks awake now (all dynamic blocks without far sleep).
+  std::size_t awake_count() const;
 
   /// Sum of 1/2 m v^2 + 1/2 w.I w over dynamic blocks, J.
   double kinetic_energy() const;

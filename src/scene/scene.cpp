@@ -46,9 +46,10 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/blocks",
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "rigid_dt", "conversion", "region", "safety_factor",
-        "flexural_strength", "stress_time_constant", "relax"}},
+        "flexural_strength", "stress_time_constant", "relax", "far_sleep"}},
       {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping"}},
-      {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity"}},
+      {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops"}},
+      {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
   };
   return k;
@@ -435,6 +436,7 @@ BlockItemDef read_block_item(const JsonObject& bo) {
   it.orientation = Quat(q[0], q[1], q[2], q[3]).normalized();
   it.velocity = bo.vec<3>("velocity", it.velocity, "m/s", "initial velocity");
   it.angular_velocity = bo.vec<3>("angular_velocity", it.angular_velocity, "rad/s", "initial angular velocity");
+  it.fixed = bo.boolean("fixed", it.fixed);
   return it;
 }
 
@@ -527,6 +529,19 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
   if (o.has("region")) read_conversion_region(o, b.region);
   b.relax.enabled = !b.ridge_file.empty();  // on by default for a ridge; a list keeps its initial state
   if (o.has("relax")) read_relax(o, b.relax);
+  if (o.has("far_sleep")) {  // docs/rigid.md, "Far sleep"
+    const JsonObject f = section(o, "far_sleep");
+    b.far_sleep = f.boolean("enabled", true);
+    b.far_sleep_wake_distance = f.number("wake_distance", b.far_sleep_wake_distance, Range::non_negative(), "m",
+                                         "blocks this close to the structure's bounding box never sleep, e.g. 2");
+    b.far_sleep_speed = f.number("speed", b.far_sleep_speed, Range::positive(), "m/s",
+                                 "a block slower than this is still, e.g. 0.01");
+    b.far_sleep_still_time = f.number("still_time", b.far_sleep_still_time, Range::non_negative(), "s",
+                                      "a block still this long (with its neighbours) falls asleep, e.g. 0.5");
+    b.far_sleep_start_asleep = f.boolean("start_asleep", b.far_sleep_start_asleep);
+    b.far_sleep_wake_hops = f.integer<int>("wake_hops", b.far_sleep_wake_hops, {0.0, 1000.0}, "",
+                                           "blocks this many contacts or joints from a moving one are woken, e.g. 4");
+  }
 }
 
 }  // namespace

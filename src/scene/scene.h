@@ -153,6 +153,7 @@ struct BlockItemDef {
   Quat orientation = Quat::Identity();
   Vec3 velocity = Vec3::Zero();      ///< m/s
   Vec3 angular_velocity = Vec3::Zero();  ///< rad/s, world
+  bool fixed = false;                ///< immovable (e.g. ice cover beside the particle sheet); never converts
 };
 
 /// Where blocks may turn into particles: a region that moves with the structure
@@ -193,6 +194,11 @@ struct BlocksDef {
     double hold = 1.0;       ///< s
     double damping = 0.0;    ///< 1/s, a set-up device (not physics)
   } relax;
+  /// Far sleep of the rigid world (docs/rigid.md, "Far sleep"); off unless blocks.far_sleep is given.
+  bool far_sleep = false;
+  double far_sleep_wake_distance = 2.0, far_sleep_speed = 0.01, far_sleep_still_time = 0.5;
+  bool far_sleep_start_asleep = false;
+  int far_sleep_wake_hops = 4;
 };
 
 struct Scene {

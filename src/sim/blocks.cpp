@@ -39,6 +39,12 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   w.freeze_bond_shear_strength = ci.freeze_shear_strength;
   d.safety_factor = b.safety_factor;
   d.stress_time_constant = b.stress_time_constant;
+  w.far_sleep.enabled = b.far_sleep;
+  w.far_sleep.wake_distance = b.far_sleep_wake_distance;
+  w.far_sleep.speed = b.far_sleep_speed;
+  w.far_sleep.still_time = b.far_sleep_still_time;
+  w.far_sleep.start_asleep = b.far_sleep_start_asleep;
+  w.far_sleep.wake_hops = b.far_sleep_wake_hops;
   // The conversion's flexural limit: the lattice's own strength (calibrated), as ISO is given.
   d.flexural_strength = b.flexural_strength > 0.0                                   ? b.flexural_strength
                         : ci.model == "calibrated" && ci.flexural_strength > 0.0 ? ci.flexural_strength
@@ -70,8 +76,10 @@ rigid::KinematicMeshDef kinematic_structure(const scene::StructureDef& st, const
   return k;
 }
 
-void add_block(BlockSetup& out, const Vec3& half, const Vec3& x, const Quat& q, const Vec3& v, const Vec3& omega) {
+void add_block(BlockSetup& out, const Vec3& half, const Vec3& x, const Quat& q, const Vec3& v, const Vec3& omega,
+               bool fixed = false) {
   bridge::BlockInit bi;
+  bi.def.fixed = fixed;
   bi.def.half_extents = half;
   bi.def.position = x;
   bi.def.orientation = q;
@@ -145,6 +153,11 @@ void drop_blocks_inside_pier(BlockSetup& out, const scene::StructureDef& st) {
   for (std::size_t k = 0; k < out.blocks.size(); ++k) {
     const auto& bd = out.blocks[k].def;
     const Vec3 rel = bd.position - st.position;
+    if (bd.fixed) {  // immovable: nothing to push out (a fixed box reaching into the pier is the scene's choice)
+      index[k] = static_cast<long>(kept.size());
+      kept.push_back(out.blocks[k]);
+      continue;
+    }
     const double R = bd.half_extents.norm();
     double r_pier = 0.0;
     for (int q = -4; q <= 4; ++q) r_pier = std::max(r_pier, mesh::pier_radius_at(st.pier, rel.z() + 0.25 * q * R));
@@ -195,7 +208,7 @@ BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, do
   }
   if (!s.blocks.ridge_file_path.empty()) add_ridge_blocks(out, s);
   for (const auto& it : s.blocks.list)
-    add_block(out, it.half_extents, it.position, it.orientation, it.velocity, it.angular_velocity);
+    add_block(out, it.half_extents, it.position, it.orientation, it.velocity, it.angular_velocity, it.fixed);
   if (s.has_structure && s.structure.type == "pier") drop_blocks_inside_pier(out, s.structure);
   if (out.blocks.empty())
     throw InputError("/blocks/keep_x", "no block left: none inside keep_x / keep_y, or all inside the structure");
