@@ -465,6 +465,9 @@ void validate(const RidgeDef& d, const std::string& P) {
         "the run's sheet must float with its top above and its underside below the waterline (level ice " +
             json_fmt(h.level_underside) + " .. " + json_fmt(h.level_top) + " m, consolidated layer " +
             json_fmt(h.layer_underside) + " .. " + json_fmt(h.layer_top) + " m)");
+    req(d.consolidated_layer_width <= 0.0 || h.layer_width >= d.consolidated_layer_width, "",
+        "the run's consolidated layer (" + json_fmt(h.layer_width) + " m of particles) must be at least " +
+            "consolidated_layer_width (" + json_fmt(d.consolidated_layer_width) + " m) wide");
   }
 }
 

@@ -355,6 +355,7 @@ RidgeDef plated_def() {
   d.sheet.level_top = 0.03, d.sheet.level_underside = -0.215;
   d.sheet.layer_top = 0.03, d.sheet.layer_underside = -0.378;
   d.sheet.particle_diameter = 0.1;
+  d.sheet.layer_width = d.consolidated_layer_width + 0.1;  // its spheres reach D/2 beyond the band
   // No sail: a sail on the 2 m wide, 3 cm freeboard layer plate would push it under (a plate
   // under water carries no more), and this test is about the balance of floating plates.
   d.sail_height = 0.0;
@@ -405,10 +406,10 @@ TEST(RidgePlates, ASmallRidgeUnderPlatesEndsInVerticalBalanceWithThePlatesLifted
   ASSERT_TRUE(s.settled);
   ASSERT_EQ(r.ice.size(), 3u);  // level ice | consolidated layer | level ice
   // Sum of (buoyancy - weight) over blocks and plates: the keel's net buoyancy is carried by the
-  // plates. Measured 0.2 % of the blocks' net buoyancy (19.5 of 9671 N: the pile still settling a
-  // little; 0.8 % with free plates); fixed ice (floating = false) leaves the plates' share at 0: the sum is the whole 100 %.
+  // plates. Measured 1.8 % of the blocks' net buoyancy (171 of 9671 N: the pile still settling a
+  // little; 1.0 % with free plates); fixed ice (floating = false) leaves the plates' share at 0: the sum is the whole 100 %.
   EXPECT_GT(s.block_net_buoyancy, 1000.0);
-  EXPECT_LT(std::abs(s.block_net_buoyancy + s.plate_net_buoyancy), 0.08 * s.block_net_buoyancy);
+  EXPECT_LT(std::abs(s.block_net_buoyancy + s.plate_net_buoyancy), 0.1 * s.block_net_buoyancy);
   // Each plate rose by its net load / (rho_w g A): summed over the plates, rho_w g A_k lift_k is
   // what the blocks press up with (their net buoyancy), as long as no plate emerged or sank.
   double lifted = 0.0;
@@ -417,18 +418,18 @@ TEST(RidgePlates, ASmallRidgeUnderPlatesEndsInVerticalBalanceWithThePlatesLifted
     lifted += 1025.0 * 9.81 * 4.0 * p.half_extents.x() * p.half_extents.y() * p.lift;
   }
   std::printf("[ plates ] sum rho_w g A lift = %.1f N\n", lifted);
-  EXPECT_NEAR(lifted, s.block_net_buoyancy, 0.08 * s.block_net_buoyancy);  // measured 0.2 %
+  EXPECT_NEAR(lifted, s.block_net_buoyancy, 0.1 * s.block_net_buoyancy);  // measured 1.8 %
   // Joined (the default), the plates heave as one: each by the net buoyancy over the whole area.
   double area = 0.0;
   for (const IceBox& p : r.ice) area += 4.0 * p.half_extents.x() * p.half_extents.y();
   const double predicted = s.block_net_buoyancy / (1025.0 * 9.81 * area);
   for (const IceBox& p : r.ice) {
     std::printf("[ plates ] lift %.5f m, predicted %.5f m\n", p.lift, predicted);
-    EXPECT_NEAR(p.lift, predicted, 0.05 * predicted);  // measured 0.5 % (the joints give a little)
+    EXPECT_NEAR(p.lift, predicted, 0.1 * predicted);  // measured 1.3-1.9 % (the balance's 1.8 %)
   }
   // The plates' x ranges tile the sheet and the middle one is the consolidated layer.
   EXPECT_EQ(r.ice[1].part, 1);
-  EXPECT_NEAR(2.0 * r.ice[1].half_extents.x(), r.def.consolidated_layer_width, 2e-3);
+  EXPECT_NEAR(2.0 * r.ice[1].half_extents.x(), r.def.sheet.layer_width, 2e-3);
 }
 
 TEST(RidgePlates, FixedIceCarriesTheKeelWithoutMoving) {
@@ -450,7 +451,7 @@ TEST(RidgePlates, FreePlatesHeaveEachByItsOwnLoad) {
   const RidgeResult r = generate_ridge(d);
   const RidgeStats& s = r.stats;
   ASSERT_TRUE(s.settled);
-  EXPECT_LT(std::abs(s.block_net_buoyancy + s.plate_net_buoyancy), 0.08 * s.block_net_buoyancy);
+  EXPECT_LT(std::abs(s.block_net_buoyancy + s.plate_net_buoyancy), 0.1 * s.block_net_buoyancy);  // measured 1.0 %
   std::printf("[ free plates ] lifts %.4f %.4f %.4f m, balance %.1f of %.1f N\n", r.ice[0].lift, r.ice[1].lift,
               r.ice[2].lift, s.block_net_buoyancy + s.plate_net_buoyancy, s.block_net_buoyancy);
   EXPECT_GT(r.ice[1].lift, 2.0 * std::max(r.ice[0].lift, r.ice[2].lift));
