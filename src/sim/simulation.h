@@ -60,7 +60,7 @@ struct BuildOptions {
   const StateArchive* restart_state = nullptr;
   /// Called every rigid step of the relaxation (progress lines); true stops it: build_simulation
   /// then throws RelaxationStopped.
-  bridge::RelaxProgressFn relax_progress;
+  bridge::RelaxProgressFn relax_progress{};
 };
 
 /// build_simulation was asked to stop during the relaxation (relax_progress returned true).

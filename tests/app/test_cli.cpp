@@ -2,6 +2,7 @@
 // checks exit codes, the output file and the error messages.
 #include <gtest/gtest.h>
 #include "cli_fixtures.h"
+#include "h5_read.h"
 #include <hdf5.h>
 #include <nlohmann/json.hpp>
 
@@ -28,6 +29,8 @@ namespace fs = std::filesystem;
 using nlohmann::json;
 
 namespace {
+
+using hs::testing::read_doubles;
 
 using Result = hs::testing::CliResult;
 
@@ -196,22 +199,6 @@ json tiny_pier() {
       "velocity": [1.0, 0, 0]
     }
   })");
-}
-
-std::vector<double> read_doubles(const fs::path& h5, const char* dataset) {
-  std::vector<double> v;
-  const hid_t f = H5Fopen(h5.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  if (f < 0) return v;
-  const hid_t d = H5Dopen2(f, dataset, H5P_DEFAULT);
-  if (d >= 0) {
-    const hid_t sp = H5Dget_space(d);
-    v.resize(static_cast<std::size_t>(H5Sget_simple_extent_npoints(sp)));
-    H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
-    H5Sclose(sp);
-    H5Dclose(d);
-  }
-  H5Fclose(f);
-  return v;
 }
 
 double read_attr(const fs::path& h5, const char* object, const char* name) {

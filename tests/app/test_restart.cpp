@@ -11,6 +11,7 @@
 // wall-clock timings.
 #include <gtest/gtest.h>
 #include "cli_fixtures.h"
+#include "h5_read.h"
 #include <hdf5.h>
 
 #include <signal.h>
@@ -33,6 +34,8 @@ extern char** environ;
 namespace fs = std::filesystem;
 
 namespace {
+
+using hs::testing::read_doubles;
 
 fs::path work_dir() { return hs::testing::cli_work_dir("restart"); }
 using hs::testing::slurp;
@@ -106,22 +109,6 @@ std::map<std::string, std::string> datasets(const fs::path& file, const std::str
   }
   H5Fclose(f);
   return out;
-}
-
-std::vector<double> read_doubles(const fs::path& file, const std::string& dataset) {
-  std::vector<double> v;
-  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  if (f < 0) return v;
-  const hid_t d = H5Dopen2(f, dataset.c_str(), H5P_DEFAULT);
-  if (d >= 0) {
-    const hid_t s = H5Dget_space(d);
-    v.resize(static_cast<std::size_t>(H5Sget_simple_extent_npoints(s)));
-    if (!v.empty()) H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
-    H5Sclose(s);
-    H5Dclose(d);
-  }
-  H5Fclose(f);
-  return v;
 }
 
 /// Wall-clock figures inside a checkpoint: the only entries two identical runs may differ in.

@@ -6,6 +6,7 @@
 // run with the relaxation off (blocks.relax = false) fails: the control below.
 #include <gtest/gtest.h>
 #include "cli_fixtures.h"
+#include "h5_read.h"
 #include <hdf5.h>
 
 #include <signal.h>
@@ -25,6 +26,8 @@ extern char** environ;
 namespace fs = std::filesystem;
 
 namespace {
+
+using hs::testing::read_doubles;
 
 fs::path work_dir() { return hs::testing::cli_work_dir("ridge_rest"); }
 hs::testing::CliResult hybridsim(const std::string& args) { return hs::testing::run_hybridsim(work_dir(), args); }
@@ -62,22 +65,6 @@ void make_scene() {
 }
 
 // ---- HDF5 reading
-std::vector<double> read_doubles(const fs::path& file, const std::string& dataset) {
-  std::vector<double> v;
-  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  if (f < 0) return v;
-  const hid_t d = H5Dopen2(f, dataset.c_str(), H5P_DEFAULT);
-  if (d >= 0) {
-    const hid_t s = H5Dget_space(d);
-    v.resize(static_cast<std::size_t>(H5Sget_simple_extent_npoints(s)));
-    if (!v.empty()) H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v.data());
-    H5Sclose(s);
-    H5Dclose(d);
-  }
-  H5Fclose(f);
-  return v;
-}
-
 double read_attribute(const fs::path& file, const std::string& object, const std::string& name) {
   double v = NAN;
   const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
