@@ -393,6 +393,11 @@ class Engine {
  private:
   /// The mesh walls' positions and last loads from a checkpoint (load_state, load_state_union).
   void load_mesh_poses_and_loads(const StateArchive& a, const std::string& prefix);
+  /// load_state_union's last phase: spreads the whole system over this run's ranks. With
+  /// keep_schedule, at the positions of the saved run's last rebuild (x_build_of, by id), building
+  /// the neighbour lists there and then putting the current positions back, so that later rebuilds
+  /// fall on the saved run's steps; otherwise the first step rebuilds.
+  void distribute_at_saved_rebuild(const std::unordered_map<GlobalId, Vec3>& x_build_of, bool keep_schedule);
   /// Forces at the current state; tangential springs advance by v_t * history_dt.
   /// finish = false: the caller reduces the loads itself (finish_forces) after the kick.
   void evaluate_forces(double history_dt, bool finish = true);

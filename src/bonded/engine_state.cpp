@@ -373,15 +373,23 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   ghost_send_.clear();
   ghost_start_.clear();
   ghost_n_.clear();
+  if (!keep_schedule) carried_exposure_.clear();
+  distribute_at_saved_rebuild(x_build_of, keep_schedule);
+  for (std::size_t i = 0; i < ps_.owned(); ++i) {
+    const auto& ft = force_of.at(ps_.gid[i]);
+    ps_.f[i] = ft.first;
+    ps_.torque[i] = ft.second;
+  }
+  max_disp2_ = 0.0;
+  forces_valid_ = true;  // the first step kicks with those forces
+}
+
+void Engine::distribute_at_saved_rebuild(const std::unordered_map<GlobalId, Vec3>& x_build_of, bool keep_schedule) {
   // Rebuilding at the saved positions of the last rebuild: every rank owns, sees as ghosts and
   // pairs what it would have at that rebuild (the same pairs as the saved run: those within
   // r_i + r_j + skin then), and x_at_build_ is what the displacement trigger of the saved run
   // compares with (a global maximum: every rank count rebuilds on the same steps). Then the
   // positions of the checkpoint's step go back in, ghosts included.
-  if (!keep_schedule) {
-    carried_exposure_.clear();
-    x_build_of.clear();
-  }
   std::unordered_map<GlobalId, Vec3> x_now;
   if (keep_schedule) {
     x_now.reserve(ps_.size());
@@ -390,13 +398,8 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
       ps_.x[i] = x_build_of.at(ps_.gid[i]);
     }
   }
-  if (comm_->parallel()) {  // every rank holds the whole system: spread it as a fresh build is
-    distributed_ = false;
-    const par::Comm& c = *comm_;
-    distribute(c, pdef_);
-  } else {
-    distributed_ = false;
-  }
+  distributed_ = false;
+  if (comm_->parallel()) distribute(*comm_, pdef_);  // every rank holds the whole system: spread it as a fresh build is
   if (keep_schedule) {
     build_neighbors();               // keeps the saved water exposure (carried_exposure_)
     --stats_.neighbor_rebuilds;      // not one of the run's own
@@ -405,13 +408,6 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
     x_at_build_.assign(ps_.x.begin(), ps_.x.end());
     need_rebuild_ = true;
   }
-  for (std::size_t i = 0; i < ps_.owned(); ++i) {
-    const auto& ft = force_of.at(ps_.gid[i]);
-    ps_.f[i] = ft.first;
-    ps_.torque[i] = ft.second;
-  }
-  max_disp2_ = 0.0;
-  forces_valid_ = true;  // the first step kicks with those forces
 }
 
 }  // namespace hs::bonded
