@@ -95,12 +95,20 @@ class LoopPoll {
 void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Simulation& sim) {
   const auto& hsu = sim.blocks();
   double vol = 0.0;
-  for (const auto& bi : hsu.blocks) vol += 8.0 * bi.def.half_extents.prod();
+  std::size_t fixed = 0;
+  for (const auto& bi : hsu.blocks) {
+    if (bi.def.fixed) {  // walls and floors: never ice to convert
+      ++fixed;
+      continue;
+    }
+    vol += 8.0 * bi.def.half_extents.prod();
+  }
   const double D = s.material.particle_diameter;
   const double est = vol / (D * D * D / std::sqrt(2.0));  // particles if all were converted
   const auto& r = sim.hybrid().report();
-  out << "blocks:           " << hsu.blocks.size() << " rigid (" << hsu.ridge_blocks_in_file << " in the ridge file), "
-      << hsu.joints.size() << " freeze joints, " << sci(vol, 4) << " m^3 of ice (~" << sci(est, 3)
+  out << "blocks:           " << hsu.blocks.size() << " rigid (" << hsu.ridge_blocks_in_file << " in the ridge file";
+  if (fixed) out << ", " << fixed << " fixed";
+  out << "), " << hsu.joints.size() << " freeze joints, " << sci(vol, 4) << " m^3 of ice (~" << sci(est, 3)
       << " particles if all converted); conversion \"" << bridge::to_string(hsu.def.mode) << "\"\n";
   out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
       << " DEM steps (stability limit " << sci(r.rigid_dt_limit, 4) << " s)\n";

@@ -144,7 +144,8 @@ void add_blocks(MemoryEstimate& est, const BlockSetup& b, double particle_diamet
   est.block_particles = 0;
   if (b.def.mode != bridge::ConversionMode::Never) {
     double volume = 0;
-    for (const auto& bl : b.blocks) volume += 8.0 * bl.def.half_extents.prod();
+    for (const auto& bl : b.blocks)
+      if (!bl.def.fixed) volume += 8.0 * bl.def.half_extents.prod();  // fixed boxes (walls) never convert
     est.block_particles = volume / hcp_cell_volume(particle_diameter);
   }
   est.block_bytes = est.blocks * kBytesPerBlock + est.joints * kBytesPerJoint +

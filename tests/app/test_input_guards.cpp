@@ -220,6 +220,16 @@ TEST(InputGuards, BlocksCountInTheMemoryEstimateAndCanBeWhatDoesNotFit) {
   EXPECT_NEAR(est.block_particles, 2.0 * std::sqrt(2.0) / (D * D * D), 1e-9 * est.block_particles);
   EXPECT_GT(est.block_bytes, 100.0 * est.block_particles);
   EXPECT_DOUBLE_EQ(est.bytes, ice_bytes + est.block_bytes);
+  // A fixed box (a wall, e.g. the keel scenes' end walls of 2,000 m^3 each) never converts: it
+  // counts as a block of the rigid world, not as particles.
+  hs::bridge::BlockInit wall;
+  wall.def.half_extents = hs::Vec3(25.0, 1.0, 10.0);
+  wall.def.fixed = true;
+  b.blocks.push_back(wall);
+  hs::sim::add_blocks(est, b, D, s.walls.size());
+  EXPECT_EQ(est.blocks, 3.0);
+  EXPECT_NEAR(est.block_particles, 2.0 * std::sqrt(2.0) / (D * D * D), 1e-9 * est.block_particles);
+  EXPECT_DOUBLE_EQ(est.bytes, ice_bytes + est.block_bytes);
   // Blocks that need more than the ice: the error is at /blocks and names what sets their size.
   est.block_bytes = 10 * ice_bytes;
   est.bytes = 11 * ice_bytes;
