@@ -269,6 +269,13 @@ class HybridSystem {
   /// The structure, the joints, the block-particle bonds and all_at_start's conversion, made now
   /// (relax.cpp); clocks to zero.
   void freeze();
+  /// The pending freeze joints into the rigid world and the pending ice joints as block-particle
+  /// bonds, carried to the blocks' current poses (relax.cpp).
+  void make_pending_joints();
+  /// all_at_start with a relaxation: the joints made at the blocks' starting poses, every block
+  /// converted (their joints becoming freeze bonds as at any conversion), then those bonds and
+  /// the joints left between blocks that stay rigid held back for freeze() (relax.cpp).
+  void convert_before_relaxation();
   void convert_all_at_start();
   bonded::Engine& engine_;
   std::unique_ptr<rigid::RigidWorld> world_;
