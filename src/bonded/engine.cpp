@@ -8,6 +8,7 @@
 #include <cmath>
 #include <cstdio>
 #include <sstream>
+#include <stdexcept>
 #include <type_traits>
 #include <unordered_map>
 
@@ -87,6 +88,28 @@ void Engine::add_bond(GlobalId a, GlobalId b, BondKind kind) {
   ++ps_.bond_count[j];
   need_rebuild_ = true;
   forces_valid_ = false;
+}
+
+std::vector<Bond> Engine::remove_bonds(const std::function<bool(const Bond&)>& which) {
+  if (parallel()) throw std::logic_error("Engine::remove_bonds: serial only (call it before distribute())");
+  std::vector<Bond> out;
+  std::size_t w = 0;
+  for (std::size_t r = 0; r < bonds_.size(); ++r) {
+    const Bond& b = bonds_[r];
+    if (!which(b)) {
+      bonds_[w++] = b;
+      continue;
+    }
+    out.push_back(b);
+    --ps_.bond_count[b.i];
+    --ps_.bond_count[b.j];
+  }
+  if (out.empty()) return out;
+  bonds_.resize(w);
+  bond_batch_.invalidate();
+  need_rebuild_ = true;  // the pairs join the contact list there (bonded pairs are kept out of it)
+  forces_valid_ = false;
+  return out;
 }
 
 std::vector<std::array<std::uint32_t, 2>> touching_pairs(const std::vector<Vec3>& x, const std::vector<double>& radius,

@@ -236,6 +236,11 @@ class Engine {
   std::size_t add_particle(const ParticleInit& p);
   /// Bond two particles (by global id) in their current configuration (stress free).
   void add_bond(GlobalId a, GlobalId b, BondKind kind = BondKind::Lattice);
+  /// Removes every bond for which `which` is true and returns them, in list order; their pairs
+  /// interact by contact from the next step (the neighbour lists are rebuilt). Serial only
+  /// (before distribute(); std::logic_error otherwise). For a set-up stage that holds bonds back
+  /// and makes them again with add_bond, stress free, afterwards (docs/bridge.md, "Relaxation").
+  std::vector<Bond> remove_bonds(const std::function<bool(const Bond&)>& which);
   /// Bond every pair among particles [first, last) whose centres are within
   /// (r_i + r_j)(1 + rel_tol) of each other. Returns the number of bonds made.
   std::size_t bond_touching(std::size_t first, std::size_t last, BondKind kind,

@@ -110,6 +110,35 @@ std::size_t BlockParticleBonds::bond_touching(const ParticleStore& ps, std::uint
   return made;
 }
 
+std::vector<BlockParticleBond> BlockParticleBonds::take_all() {
+  std::vector<BlockParticleBond> out;
+  for (const BlockParticleBond& b : bonds_)
+    if (!b.broken) out.push_back(b);
+  bonds_.clear();
+  cached_index_.clear();
+  n_intact_ = 0;
+  return out;
+}
+
+void BlockParticleBonds::remake(const ParticleStore& ps, const BlockParticleBond& b) {
+  if (b.block >= blocks_.size()) throw std::invalid_argument("BlockParticleBonds: unknown block slot");
+  const std::uint32_t i = ps.local(b.gid);
+  if (i == ParticleStore::kNone) throw std::invalid_argument("BlockParticleBonds: unknown particle id");
+  const BlockBody& B = blocks_[b.block];
+  const Vec3 xv = B.position + B.orientation * b.anchor;  // as add_forces() computes it
+  const double r = ps.radius[i];
+  if (!((xv - ps.x[i]).norm() > 0.25 * r))
+    throw std::invalid_argument("BlockParticleBonds: particle centre inside the block");
+  BlockParticleBond nb;
+  nb.gid = b.gid;
+  nb.block = b.block;
+  nb.anchor = b.anchor;
+  nb.ref = BondRef::at_rest(ps.x[i], ps.q[i], r, xv, B.orientation, r);
+  bonds_.push_back(nb);
+  cached_index_.push_back(i);
+  ++n_intact_;
+}
+
 std::vector<ReleasedBond> BlockParticleBonds::bonds_of(std::uint32_t block) const {
   std::vector<ReleasedBond> out;
   for (const BlockParticleBond& b : bonds_)

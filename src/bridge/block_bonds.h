@@ -106,6 +106,14 @@ class BlockParticleBonds final : public bonded::ForceSource {
   void add_bond_to(GlobalId gid, const Vec3& x, const Quat& q, double radius, std::uint32_t block,
                    const Vec3& surface_point, const Vec3& normal);
 
+  /// Removes every bond and returns the intact ones, in list order: e.g. held back during a
+  /// set-up stage and made again with remake() afterwards (docs/bridge.md, "Relaxation").
+  std::vector<BlockParticleBond> take_all();
+  /// Makes bond `b` again (its particle, block and block-frame anchor), stress free in the
+  /// current configuration. Throws std::invalid_argument for an unknown particle or block, or a
+  /// particle centre inside the block.
+  void remake(const bonded::ParticleStore& ps, const BlockParticleBond& b);
+
   /// Block `block`'s intact bonds as release_block() would return them, removing nothing.
   std::vector<ReleasedBond> bonds_of(std::uint32_t block) const;
   /// Conversion hand-over: removes block `block`'s bonds and returns each one's particle and

@@ -226,14 +226,14 @@ class HybridSystem {
   /// Releases the blocks and the sheet (see RelaxDef) until they are at rest or def.max_time has
   /// passed, then freezes: the structure into the rigid world, the freeze joints (each ridge
   /// anchor and normal carried with its first block's motion) and the block-particle freeze bonds
-  /// (patches carried with their block) made stress free at the relaxed geometry, all_at_start's
-  /// conversion, and the engine's and the rigid world's clocks back to t = 0. The structure's
-  /// walls are parked meanwhile (Engine::set_walls_parked). If `progress` asks to stop, returns at
-  /// once with `stopped` set and nothing frozen. Call before Engine::distribute().
+  /// (patches carried with their block) made stress free at the relaxed geometry, clocks to t = 0
+  /// (all_at_start: converted before the release, its bonds made again stress free here; docs/
+  /// bridge.md, "Relaxation"). Walls parked meanwhile (Engine::set_walls_parked). If `progress`
+  /// asks to stop, returns at once with `stopped` set and nothing frozen. Before distribute().
   const RelaxReport& relax(const RelaxDef& def, const RelaxProgressFn& progress = {});
   /// Instead of relax() when restarting from a checkpoint of a run that relaxed: the rigid world
   /// as the relaxation left it (saved with every checkpoint) and the same freeze, so that joints
-  /// and bonds are made exactly as in the original run.
+  /// and bonds are made exactly as in the original run (all_at_start: the same conversion first).
   void restore_relaxation(const StateArchive& a, const std::string& prefix);
   const RelaxReport& relax_report() const;
   /// Elastic energy of the block-particle freeze bonds of this rank's particles, J.
@@ -266,9 +266,16 @@ class HybridSystem {
   /// The starting blocks (moved clear of the particles) and their joints into the world, and
   /// every block into the particle contact; returns the blocks' ids in `blocks` order.
   std::vector<rigid::BlockId> add_blocks(const std::vector<BlockInit>& blocks, const std::vector<JointInit>& joints);
-  /// The structure, the joints, the block-particle bonds and all_at_start's conversion, made now
-  /// (relax.cpp); clocks to zero.
+  /// The structure, the joints, the block-particle bonds and all_at_start's conversion (or, when
+  /// it came before the relaxation, the bonds it made, again), made now (relax.cpp); clocks to zero.
   void freeze();
+  /// The pending freeze joints into the rigid world and the pending ice joints as block-particle
+  /// bonds, carried to the blocks' current poses (relax.cpp).
+  void make_pending_joints();
+  /// all_at_start with a relaxation: the joints made at the blocks' starting poses, every block
+  /// converted (their joints becoming freeze bonds as at any conversion), then those bonds and
+  /// the joints left between blocks that stay rigid held back for freeze() (relax.cpp).
+  void convert_before_relaxation();
   void convert_all_at_start();
   bonded::Engine& engine_;
   std::unique_ptr<rigid::RigidWorld> world_;

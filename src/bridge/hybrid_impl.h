@@ -42,6 +42,12 @@ struct HybridSystem::Impl {
   std::vector<rigid::BlockId> pending_ids;
   std::vector<Vec3> x0;
   std::vector<Quat> q0;
+  // all_at_start with a relaxation (convert_before_relaxation, relax.cpp): every block converted
+  // before it, and the freeze couplings that the conversion made from the joints held back until
+  // the freeze, which makes them again stress free.
+  bool converted_before_relax = false;
+  std::vector<bonded::Bond> held_bonds;             ///< particle-particle freeze bonds
+  std::vector<BlockParticleBond> held_block_bonds;  ///< block-particle freeze bonds
   StateArchive relaxed_world;  ///< the rigid world at the end of the relaxation (checkpoints)
   RelaxReport relax;
   /// Per block k: 1 when ref[k] has v = w = 0 and the contact and bonds already hold its pose

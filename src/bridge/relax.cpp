@@ -55,6 +55,9 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     }
     mean = n ? sum / static_cast<double>(n) : 0.0;
   };
+  // all_at_start: the lattices relax with the sheet (their freeze bonds held back until the
+  // freeze), not the rigid blocks they came from. After z0: the sheet's figures stay the sheet's.
+  if (m.def.mode == ConversionMode::AllAtStart) convert_before_relaxation();
   const std::uint64_t broken0 = engine_.stats().bonds_broken;
   const std::uint64_t k = report_.steps_per_rigid_step;
   const double h = report_.rigid_dt, dt = engine_.dt();
@@ -119,6 +122,9 @@ void HybridSystem::restore_relaxation(const StateArchive& a, const std::string& 
     throw std::runtime_error("hybrid checkpoint: the scene relaxes its blocks but the checkpoint holds no relaxed "
                              "state (written by a version without the relaxation?)");
   m.relax = a.get_value<RelaxReport>(p + "relax_report");
+  // The same conversion as before the original relaxation (same blocks, same steps): the world
+  // then holds the blocks the saved one did; the engine's particles are restored afterwards.
+  if (m.def.mode == ConversionMode::AllAtStart) convert_before_relaxation();
   m.relaxed_world.entries.clear();
   for (const auto& [key, value] : a.entries)
     if (key.compare(0, pre.size(), pre) == 0) m.relaxed_world.entries.emplace(key.substr(pre.size()), value);
@@ -134,6 +140,24 @@ void HybridSystem::freeze() {
   engine_.reset_clock();
   world_->reset_clock();
   if (m.def.has_structure) m.mesh = world_->add_kinematic_mesh(m.def.structure);
+  make_pending_joints();
+  if (m.converted_before_relax) {
+    // all_at_start: the freeze bonds its conversion made, stress free at the relaxed positions
+    // (the particles at their relaxed positions, the blocks left rigid at their relaxed poses).
+    for (const bonded::Bond& b : m.held_bonds) engine_.add_bond(b.gi, b.gj, b.kind);
+    for (const BlockParticleBond& b : m.held_block_bonds) m.bonds.remake(engine_.particles(), b);
+    m.held_bonds.clear();
+    m.held_block_bonds.clear();
+  } else if (m.def.mode == ConversionMode::AllAtStart) {
+    convert_all_at_start();
+  }
+  report_.rigid_steps = 0;  // the run's, from t = 0
+  report_.blocks_now = world_->block_count();
+  report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());
+}
+
+void HybridSystem::make_pending_joints() {
+  Impl& m = *impl_;
   // A point given at the blocks' starting poses, carried with block k's motion since.
   const auto moved = [&](std::size_t k, const Vec3& point) {
     const rigid::BlockId id = m.pending_ids.at(k);
@@ -152,10 +176,29 @@ void HybridSystem::freeze() {
                                                     moved(j.block, j.anchor), turned(j.block, j.normal), j.area);
   m.pending_joints.clear();
   m.pending_ice_joints.clear();
-  if (m.def.mode == ConversionMode::AllAtStart) convert_all_at_start();
-  report_.rigid_steps = 0;  // the run's, from t = 0
-  report_.blocks_now = world_->block_count();
-  report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());
+}
+
+void HybridSystem::convert_before_relaxation() {
+  Impl& m = *impl_;
+  if (m.converted_before_relax) return;
+  const std::vector<JointInit> joints = m.pending_joints;
+  const GlobalId first_new = engine_.particles().next_gid();
+  // The joints as the ridge file gives them, at the blocks' poses now (moved clear of the
+  // sheet): every conversion turns them into freeze bonds as in a run (HybridSystem::convert).
+  make_pending_joints();
+  convert_all_at_start();
+  // Held back until the freeze: the joints between blocks left rigid (refused by the converter;
+  // made again from the ridge file's joints at the relaxed poses), the block-particle bonds, and
+  // the particle-particle freeze bonds to the new particles (both ends' ids kept).
+  for (const rigid::BlockId id : world_->blocks())
+    for (const rigid::JointId j : world_->joints_of(id)) world_->remove_joint(j);
+  for (const JointInit& j : joints)
+    if (world_->alive(m.pending_ids.at(j.a)) && world_->alive(m.pending_ids.at(j.b))) m.pending_joints.push_back(j);
+  m.held_block_bonds = m.bonds.take_all();
+  m.held_bonds = engine_.remove_bonds([&](const bonded::Bond& b) {
+    return b.kind == bonded::BondKind::Freeze && std::max(b.gi, b.gj) >= first_new;
+  });
+  m.converted_before_relax = true;
 }
 
 }  // namespace hs::bridge

@@ -429,3 +429,41 @@ TEST(Engine, CriticalStepOfTheCheckIsStable) {
   // Measured 7.8e-2 over 3000 steps (an unstable step grows the energy exponentially): limit 0.5.
   EXPECT_LT(r.max_dev, 0.5);
 }
+
+TEST(Engine, RemovedBondsLeaveTheirPairToContact) {
+  // Two spheres 1 % of D in overlap, freeze-bonded there (stress free, so at rest), and a
+  // lattice-bonded pair beside them. remove_bonds takes the freeze bond only and returns it; from
+  // the next step the pair meets by contact and is pushed apart with equal and opposite momenta.
+  // Control: with the bond kept nothing moves.
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), 0.5 * ice.D, 1e9, 1e9, 0.0, 1, 1);
+  d.bond[1] = d.bond[0];
+  std::vector<Vec3> v0(2), v1(2);
+  std::vector<Bond> taken;
+  for (const bool remove : {false, true}) {
+    Engine e(d);
+    e.add_particle(test::sphere_at(ice, Vec3(0, 0, 0)));
+    e.add_particle(test::sphere_at(ice, Vec3(0.99 * ice.D, 0, 0)));
+    e.add_particle(test::sphere_at(ice, Vec3(0, 3 * ice.D, 0)));
+    e.add_particle(test::sphere_at(ice, Vec3(ice.D, 3 * ice.D, 0)));
+    e.add_bond(0, 1, BondKind::Freeze);
+    e.add_bond(2, 3, BondKind::Lattice);
+    if (remove) taken = e.remove_bonds([](const Bond& b) { return b.kind == BondKind::Freeze; });
+    e.run(20);
+    const auto& p = e.particles();
+    v0[remove] = p.mass[p.local(0)] * p.v[p.local(0)];
+    v1[remove] = p.mass[p.local(1)] * p.v[p.local(1)];
+    ASSERT_EQ(e.bonds().size(), remove ? 1u : 2u);
+    EXPECT_EQ(e.bonds()[0].kind, remove ? BondKind::Lattice : e.bonds()[0].kind);
+  }
+  // Kept: measured |p| = 0 (a bond made in place exerts nothing, and keeps the pair out of contact).
+  EXPECT_LT(v1[0].norm(), 1e-12);
+  ASSERT_EQ(taken.size(), 1u);
+  EXPECT_EQ(taken[0].gi, 0u);
+  EXPECT_EQ(taken[0].gj, 1u);
+  EXPECT_EQ(taken[0].kind, BondKind::Freeze);
+  EXPECT_LT(v0[1].x(), 0.0) << "the overlap pushes the pair apart by contact";
+  EXPECT_GT(v1[1].x(), 1e3 * v1[0].norm() + 1e-9);
+  EXPECT_LT((v0[1] + v1[1]).norm(), 1e-9 * v1[1].norm());
+}
