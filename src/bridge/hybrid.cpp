@@ -191,6 +191,11 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
     throw std::logic_error("HybridSystem: build it before Engine::distribute() (its freeze bonds are replicated)");
   choose_rigid_step(engine, def, blocks, !ice_joints.empty() || !joints.empty(), report_);
   world_ = std::make_unique<rigid::RigidWorld>(hybrid_world_def(engine, def, report_.rigid_dt));
+  // Far sleep's wake-box margin: the largest half diagonal of a block that can move (a fixed wall
+  // never enters the region). Set here for both paths: with the relaxation (deferred freeze) it
+  // was left at 0.
+  for (const auto& b : blocks)
+    if (!b.def.fixed) m.wake_reach = std::max(m.wake_reach, b.def.half_extents.norm());
   if (def.defer_freeze) {  // blocks only; relax() makes the rest (relax.cpp)
     m.pending_ids = add_blocks(blocks, {});
     m.pending_joints = joints;
@@ -211,7 +216,6 @@ HybridSystem::HybridSystem(bonded::Engine& engine, const HybridDef& def, const s
   }
   if (def.has_structure) m.mesh = world_->add_kinematic_mesh(def.structure);
   const std::vector<rigid::BlockId> ids = add_blocks(blocks, joints);
-  for (const auto& b : blocks) m.wake_reach = std::max(m.wake_reach, b.def.half_extents.norm());
   m.take_reference(*world_);
   m.extrapolate(world_->time());
   for (const auto& j : ice_joints)

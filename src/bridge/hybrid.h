@@ -238,6 +238,10 @@ class HybridSystem {
   const RelaxReport& relax_report() const;
   /// Elastic energy of the block-particle freeze bonds of this rank's particles, J.
   double block_bond_elastic_energy() const;
+  /// Far sleep: the margin the wake box around the conversion region grows by beyond
+  /// far_sleep.wake_distance, m: the largest half diagonal of a block that can move (fixed boxes
+  /// never enter the region), with or without the relaxation.
+  double far_sleep_reach() const;
   /// Converts block `id` now (removes it from the rigid world and appends its particles);
   /// the policy calls it, tests may too. Returns the converter's report.
   ConversionReport convert(rigid::BlockId id);

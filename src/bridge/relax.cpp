@@ -21,6 +21,7 @@ double block_speed(const rigid::RigidWorld& w, rigid::BlockId id) {
 
 bool HybridSystem::freeze_pending() const { return impl_->freeze_pending; }
 const RelaxReport& HybridSystem::relax_report() const { return impl_->relax; }
+double HybridSystem::far_sleep_reach() const { return impl_->wake_reach; }
 double HybridSystem::block_bond_elastic_energy() const {
   return world_ ? impl_->bonds.elastic_energy(engine_.particles(), engine_.def()) : 0.0;
 }

@@ -76,6 +76,31 @@ TEST(Relax, BlockFloatsAtTheAnalyticDraft) {
   EXPECT_GT(std::abs(off.z - z_eq), 0.1);
 }
 
+TEST(Relax, FarSleepWakeReachIsSetWithTheRelaxationToo) {
+  // Far sleep keeps the blocks within the conversion region + wake_distance + the largest movable
+  // block's half diagonal awake. With the relaxation (deferred freeze) that margin was left at 0:
+  // a large block centred just outside could sleep while its end lay in the region. A fixed wall
+  // (the keel scenes' 50 m end walls) never moves into the region: it does not count.
+  const auto reach = [](bool relax) {
+    bonded::Engine e(ice_def(0.3));
+    e.set_dt(ice_dt());
+    add_spectator(e);
+    bridge::HybridDef d = wet_hybrid(bridge::ConversionMode::Never);
+    d.defer_freeze = relax;
+    bridge::BlockInit b, wall;
+    b.def.half_extents = Vec3(2.0, 1.0, 2.0);  // half diagonal 3 m
+    b.def.position = Vec3(0, 0, -3.0);
+    b.def.density = kRhoI;
+    wall.def.half_extents = Vec3(25.0, 1.0, 10.0);
+    wall.def.position = Vec3(0, 20.0, -3.0);
+    wall.def.fixed = true;
+    bridge::HybridSystem h(e, d, {b, wall});
+    return h.far_sleep_reach();
+  };
+  EXPECT_DOUBLE_EQ(reach(false), 3.0);
+  EXPECT_DOUBLE_EQ(reach(true), 3.0);
+}
+
 // ---- joints and block-particle bonds made after the relaxation are stress free ----
 
 /// A floating two-layer sheet of particles (D = 0.2 m) 3 x 3 m, and two 1.2 x 1.0 x 0.4 m blocks
