@@ -120,7 +120,9 @@ TEST(FarSleep, ApproachingStructureWakesBlockInTime) {
     const int m = w.add_kinematic_mesh(wall_mesh(2.0, Vec3(-3.0, 0, 0), Vec3(0.5, 0, 0)));
     const BlockId id = w.add_block(floe(0.0));
     w.step(0.5);
-    if (on) EXPECT_TRUE(w.asleep(id));  // 2.5 m away: outside the wake distance (1 m + half size)
+    if (on) {
+      EXPECT_TRUE(w.asleep(id));  // 2.5 m away: outside the wake distance (1 m + half size)
+    }
     w.step(6.0);
     EXPECT_FALSE(w.asleep(id));
     // The face is at x = 0.25 m; the floe's back face ahead of it.
