@@ -113,6 +113,8 @@ struct RelaxProgress {
   double time = 0.0;                 ///< s of relaxation
   double max_block_speed = 0.0;      ///< m/s: centre speed + |omega| x half diagonal
   double max_particle_speed = 0.0;   ///< m/s
+  Vec3 fastest_block = Vec3::Zero();     ///< m, centre of the fastest block (where the relaxation still moves)
+  Vec3 fastest_particle = Vec3::Zero();  ///< m, centre of the fastest particle
   double block_kinetic_energy = 0.0; ///< J
   double quiet_time = 0.0;           ///< s for which both speeds have been below RelaxDef::speed
 };

@@ -84,9 +84,19 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     P.time = static_cast<double>(R.rigid_steps) * h;
     P.max_block_speed = 0.0;
     for (const rigid::BlockId id : m.ids)
-      if (!world_->fixed(id)) P.max_block_speed = std::max(P.max_block_speed, block_speed(*world_, id));
+      if (!world_->fixed(id)) {
+        const double v = block_speed(*world_, id);
+        if (v > P.max_block_speed) {
+          P.max_block_speed = v;
+          P.fastest_block = world_->position(id);
+        }
+      }
     double v2 = 0.0;
-    for (std::size_t i = 0; i < ps.owned(); ++i) v2 = std::max(v2, ps.v[i].squaredNorm());
+    for (std::size_t i = 0; i < ps.owned(); ++i)
+      if (ps.v[i].squaredNorm() > v2) {
+        v2 = ps.v[i].squaredNorm();
+        P.fastest_particle = ps.x[i];
+      }
     P.max_particle_speed = std::sqrt(v2);
     P.block_kinetic_energy = world_->kinetic_energy();
     P.quiet_time = P.max_block_speed < def.speed && P.max_particle_speed < def.speed ? P.quiet_time + h : 0.0;
