@@ -127,6 +127,13 @@ void Engine::distribute(const par::Comm& comm, const ParallelDef& def) {
   ps_.advance_gid(static_cast<GlobalId>(comm.max(static_cast<double>(ps_.next_gid()))));
   // Keep this rank's share: particles in its box, bonds whose lower-id particle it owns.
   // The first exchange below balances the cuts by cost and moves particles accordingly.
+  // Contact history made before the spread (the relaxation before the freeze runs serially on
+  // every rank alike) goes to the first neighbour build by global ids, as at any exchange: a
+  // serial run keeps its list, so N ranks must keep the history too.
+  for (const auto& p : pairs_)
+    if (p.xi.squaredNorm() > 0.0)
+      carried_history_.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]),
+                               ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
   pairs_.clear();
   last_balance_step_ = step_;
   max_bond_length_ = 0.0;
