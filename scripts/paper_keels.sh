@@ -3,8 +3,8 @@
 # that are missing, each with its scene's ice (`hybridsim ridge <scene>` writes blocks.ridge_file),
 # then checks each scene. Keel 0 m is the consolidated layer alone: no ridge to make.
 #   bash scripts/paper_keels.sh [DEPTH ...]    (default: 4m 6m 7_9m)
-# Measured (2 cores shared by six sessions, nice): 4 m 3 min wall (25 s CPU, 1255 blocks), 7.9 m
-# 20 min wall (3 min 44 s CPU, 5972 blocks); 6 m not measured (~3400 blocks expected).
+# Measured 2026-12-02 (shared machine, nice): 4 m 117 s wall (289 blocks), 6 m 496 s wall (736 blocks), 7.9 m
+# 32 s wall (1352 blocks; whole keels 3.9 x depth wide, docs/ridge.md "Keel scenes").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/build.sh hybridsim

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The 8 m keel against the cone (scenes/ridge_keel_8m_cone.json), hybrid and full-particle.
-#   bash scripts/ridge_cone.sh [DURATION_S]    (default: the scene's 30 s; both runs use it)
+#   bash scripts/ridge_cone.sh [DURATION_S]    (default: the scene's 29 s; both runs use it)
 # Builds, makes the ridge file if missing (`hybridsim ridge` on the run scene itself: the keel
 # settles under plates of the run's own sheet, with its ice; ~30 s CPU, 1352 blocks), runs the scene in hybrid
 # mode and with conversion = all_at_start (the full-particle reference: 2.7x the peak particle
