@@ -7,8 +7,10 @@
 # tests run up to ~100x slower than Release (Engine.UndampedBondedBodyConservesEnergy 1.5 -> 154 s).
 # The only suppressions are third-party leaks (scripts/sanitizers/lsan.supp,
 # one comment per entry); nothing in hybridsim's own code is suppressed.
-# Time on the shared 2-core dev machine (load 5-7): build ~37 min, non-MPI tests ~7 min, MPI
-# tests ~1.5 min; the script's last line prints the figures.
+# Time on the 2-core dev machine: build ~37 min from scratch (load 5-7, 2026-12-01); on main
+# cb5290f (2026-12-02, shared with a CI run): "build 889 s (incremental, after a header change),
+# tests 287 s" (273 unit tests in 230 s, 6 MPI unit tests in 57 s), all passed, no sanitizer report.
+# The script's last line prints the figures.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$(pwd)
