@@ -545,6 +545,9 @@ class Engine {
   std::uint64_t last_balance_step_ = 0;
   double force_seconds_since_balance_ = 0.0;
   std::unordered_map<GidPair, Vec3, GidPairHash> carried_history_;  ///< contact history between exchange and build
+  /// The tangential springs of the listed pairs whose first particle's index is below `below`
+  /// into carried_history_ (by global ids, oriented from the lower id), for the next build.
+  void carry_pair_history(std::size_t below);
   std::vector<par::Bytes> fwd_send_, fwd_recv_, rev_send_, rev_recv_;  ///< ghost update buffers
   std::uint64_t broken_now_[2] = {0, 0};               ///< tension, shear breaks of this force evaluation
   // scratch for neighbour build

@@ -97,6 +97,13 @@ std::int64_t Engine::global_bond_count() const {
   return parallel() ? comm_->sum(n) : n;
 }
 
+void Engine::carry_pair_history(std::size_t below) {
+  for (const auto& p : pairs_)
+    if (p.xi.squaredNorm() > 0.0 && p.i < below)
+      carried_history_.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]),
+                               ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+}
+
 void Engine::distribute(const par::Comm& comm, const ParallelDef& def) {
   comm_ = &comm;
   pdef_ = def;
@@ -130,10 +137,7 @@ void Engine::distribute(const par::Comm& comm, const ParallelDef& def) {
   // Contact history made before the spread (the relaxation before the freeze runs serially on
   // every rank alike) goes to the first neighbour build by global ids, as at any exchange: a
   // serial run keeps its list, so N ranks must keep the history too.
-  for (const auto& p : pairs_)
-    if (p.xi.squaredNorm() > 0.0)
-      carried_history_.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]),
-                               ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+  carry_pair_history(ps_.size());
   pairs_.clear();
   last_balance_step_ = step_;
   max_bond_length_ = 0.0;
@@ -239,10 +243,7 @@ void Engine::drop_ghosts() {
     lb = std::max(lb, (ps_.x[b.j] - ps_.x[b.i]).norm());
   }
   max_bond_length_ = unbound ? std::max(lb, max_bond_length_) : lb;
-  for (const auto& p : pairs_)  // (ghost ids are still there to read)
-    if (p.xi.squaredNorm() > 0.0 && p.i < n)
-      carried_history_.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]),
-                               ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+  carry_pair_history(n);  // (ghost ids are still there to read)
   ps_.truncate(n);
   for (auto& h : wall_hist_) h.resize(n);
 }

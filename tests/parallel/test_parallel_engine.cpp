@@ -18,6 +18,16 @@ using test::max_position_difference;
 using test::world;
 using Pair = test::EnginePair;
 
+/// Loose soft spheres under gravity (E = 1e7 Pa, set on `ice` too), friction `mu`, unbreakable bonds.
+EngineDef soft_granular_def(test::Ice& ice, double mu) {
+  ice.E = 1e7;
+  EngineDef d = ice_def(INFINITY, mu);
+  d.youngs_modulus = ice.E;
+  d.contact.kn = d.contact.kt = ice.kn();
+  d.gravity = Vec3(0, 0, -9.81);
+  return d;
+}
+
 TEST(Parallel, BondedBarAcrossRankBoundaryMovesAsInSerial) {
   // A 6 m HCP bar along x, centred on x = 0 (the 2-rank cut), vibrating in bending and twisting
   // under gravity: every step has bonds across the rank boundary.
@@ -104,11 +114,8 @@ TEST(Parallel, GranularFlowConservesParticlesThroughMigration) {
   // Loose particles poured into a box with frictional walls slosh across every rank boundary;
   // the ranks must hold every particle exactly once at all times.
   test::Ice ice;
-  ice.E = 1e7;  // soft: 3000 steps cover 1.4 s of sloshing
-  EngineDef d = ice_def(INFINITY, 0.4);
-  d.youngs_modulus = ice.E;
-  d.contact.kn = d.contact.kt = ice.kn();
-  d.gravity = Vec3(0, 0, -9.81);
+  // soft: 3000 steps cover 1.4 s of sloshing
+  const EngineDef d = soft_granular_def(ice, 0.4);
   auto build = [&](Engine& e) {
     std::mt19937_64 rng(17);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
@@ -169,11 +176,7 @@ TEST(Parallel, ContactHistoryMadeBeforeTheSpreadIsKept) {
   // tangential springs must reach the spread engine as a serial run keeps them. Lost, every
   // sticking contact restarts from zero spring and the pile slips.
   test::Ice ice;
-  ice.E = 1e7;
-  EngineDef d = ice_def(INFINITY, 0.5);
-  d.youngs_modulus = ice.E;
-  d.contact.kn = d.contact.kt = ice.kn();
-  d.gravity = Vec3(0, 0, -9.81);
+  const EngineDef d = soft_granular_def(ice, 0.5);
   auto build = [&](Engine& e) {
     std::mt19937_64 rng(5);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
