@@ -44,17 +44,24 @@ void BlockParticleBonds::add_bond_to(GlobalId gid, const Vec3& x, const Quat& q,
                                      const Vec3& surface_point, const Vec3& normal) {
   if (block >= blocks_.size()) throw std::invalid_argument("BlockParticleBonds: unknown block slot");
   const BlockBody& B = blocks_[block];
+  const Vec3 anchor = B.orientation.conjugate() * (surface_point - r * normal - B.position);
+  push_at_anchor(gid, x, q, r, block, anchor, ParticleStore::kNone);  // (looked up by id at the first evaluation)
+}
+
+void BlockParticleBonds::push_at_anchor(GlobalId gid, const Vec3& x, const Quat& q, double r, std::uint32_t block,
+                                        const Vec3& anchor, std::uint32_t cached) {
+  const BlockBody& B = blocks_[block];
   BlockParticleBond b;
   b.gid = gid;
   b.block = block;
-  b.anchor = B.orientation.conjugate() * (surface_point - r * normal - B.position);
+  b.anchor = anchor;
   // The virtual particle's centre exactly as add_forces() will compute it, so the bond starts
   // stress free up to rounding.
   const Vec3 xv = B.position + B.orientation * b.anchor;
   if (!((xv - x).norm() > 0.25 * r)) throw std::invalid_argument("BlockParticleBonds: particle centre inside the block");
   b.ref = BondRef::at_rest(x, q, r, xv, B.orientation, r);
   bonds_.push_back(b);
-  cached_index_.push_back(ParticleStore::kNone);  // (looked up by id at the first evaluation)
+  cached_index_.push_back(cached);
   ++n_intact_;
 }
 
@@ -124,19 +131,7 @@ void BlockParticleBonds::remake(const ParticleStore& ps, const BlockParticleBond
   if (b.block >= blocks_.size()) throw std::invalid_argument("BlockParticleBonds: unknown block slot");
   const std::uint32_t i = ps.local(b.gid);
   if (i == ParticleStore::kNone) throw std::invalid_argument("BlockParticleBonds: unknown particle id");
-  const BlockBody& B = blocks_[b.block];
-  const Vec3 xv = B.position + B.orientation * b.anchor;  // as add_forces() computes it
-  const double r = ps.radius[i];
-  if (!((xv - ps.x[i]).norm() > 0.25 * r))
-    throw std::invalid_argument("BlockParticleBonds: particle centre inside the block");
-  BlockParticleBond nb;
-  nb.gid = b.gid;
-  nb.block = b.block;
-  nb.anchor = b.anchor;
-  nb.ref = BondRef::at_rest(ps.x[i], ps.q[i], r, xv, B.orientation, r);
-  bonds_.push_back(nb);
-  cached_index_.push_back(i);
-  ++n_intact_;
+  push_at_anchor(b.gid, ps.x[i], ps.q[i], ps.radius[i], b.block, b.anchor, i);
 }
 
 std::vector<ReleasedBond> BlockParticleBonds::bonds_of(std::uint32_t block) const {

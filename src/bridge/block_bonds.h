@@ -160,6 +160,9 @@ class BlockParticleBonds final : public bonded::ForceSource {
   void load_state_union(const std::vector<StateArchive>& all, const std::string& prefix, bool keep_sums);
 
  private:
+  /// A bond at a block-frame anchor, stress free now; `cached` is the particle's index or kNone.
+  void push_at_anchor(GlobalId gid, const Vec3& x, const Quat& q, double r, std::uint32_t block, const Vec3& anchor,
+                      std::uint32_t cached);
   std::uint32_t lookup(const bonded::ParticleStore& ps, std::size_t n_owned, std::size_t k);
   std::vector<BlockBody> blocks_;
   std::vector<BlockParticleBond> bonds_;
