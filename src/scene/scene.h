@@ -178,6 +178,10 @@ struct BlocksDef {
   double density = 0.0;              ///< kg/m^3; 0 = material.density
   double friction = -1.0;            ///< ice-ice; < 0 = material.friction
   int solver_iterations = 20;
+  /// Two friction directions per contact point, kept for its lifetime (RigidWorldDef); false:
+  /// Bullet's one direction along the sliding velocity, under which resting blocks in a deep
+  /// pile creep at cm/s (docs/ridge.md, "Fixed friction directions").
+  bool fixed_friction_directions = true;
   double rigid_dt = 0.0;             ///< s; 0 = the largest step the stability rule allows
   std::string conversion = "hybrid"; ///< "hybrid", "all_at_start" or "never"
   ConversionRegionDef region;

@@ -420,6 +420,13 @@ TEST(SceneBlocks, DefaultsAndErrors) {
   expect_error([&] { scene::parse_scene(k); }, "/blocks/solver_iterations", "expected a whole number, got 20.5");
   k["blocks"] = json::parse(R"({"list": [{}], "solver_iterations": 30.0})");
   EXPECT_EQ(scene::parse_scene(k).blocks.solver_iterations, 30);
+  // Fixed friction directions: on by default (the generator settles the keel so; with Bullet's one
+  // sliding direction the keel creeps in the run), off on request.
+  EXPECT_TRUE(scene::parse_scene(k).blocks.fixed_friction_directions);
+  k["blocks"] = json::parse(R"({"list": [{}], "fixed_friction_directions": false})");
+  EXPECT_FALSE(scene::parse_scene(k).blocks.fixed_friction_directions);
+  k["blocks"] = json::parse(R"({"list": [{}], "fixed_friction_directions": 1})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/fixed_friction_directions", "");
   expect_bad("/parallel/balance_interval", 500.5, "/parallel/balance_interval", "whole number");
   expect_bad("/parallel/balance_interval", -1, "/parallel/balance_interval", "must be >= 0");
 }
