@@ -198,6 +198,10 @@ struct BlocksDef {
     double hold = 1.0;       ///< s
     double damping = 0.0;    ///< 1/s, a set-up device (not physics)
   } relax;
+  /// Not a scene key: false lets the run take a ridge file made with other ice or under fixed
+  /// boxes (sim::check_ridge_generation passes). Set by `hybridsim bench hybrid` only, which times
+  /// steps on the standalone paper-size ridge and does not ask for its rest.
+  bool check_ridge_generation = true;
   /// Far sleep of the rigid world (docs/rigid.md, "Far sleep"); off unless blocks.far_sleep is given.
   bool far_sleep = false;
   double far_sleep_wake_distance = 2.0, far_sleep_speed = 0.01, far_sleep_still_time = 0.5;

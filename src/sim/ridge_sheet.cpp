@@ -78,6 +78,7 @@ bool scene_sets(const scene::Scene& s, const char* pointer) {
 }
 
 void check_ridge_generation(const rigid::RidgeResult& r, const scene::Scene& s, const std::string& path) {
+  if (!s.blocks.check_ridge_generation) return;  // bench hybrid (scene.h)
   const std::string fix = "regenerate the ridge with this scene's ice: `hybridsim ridge <this scene>.json` "
                           "(a run scene with a \"ridge\" section, docs/ridge.md), or make the scene match the file";
   if (!r.def.sheet.floating)

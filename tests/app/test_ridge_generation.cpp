@@ -212,4 +212,12 @@ TEST(RidgeGeneration, CliRunRefusesAMismatchWithExit2AndGenerationTakesTheScenes
   ASSERT_TRUE(fs::exists(work_dir() / "gen_ridge.h5"));
   const CliResult chk = hybridsim("check gen.json");
   EXPECT_EQ(chk.rc, 0) << chk.err;
+  // `bench hybrid` on it times steps at once: its scene must not relax the ridge first (with the
+  // relaxation on, as a ridge file turns it on by default, 8 steps took over 5 min of relaxing).
+  const CliResult bench = hybridsim("bench hybrid --ridge gen_ridge.h5 --steps 8");
+  ASSERT_EQ(bench.rc, 0) << bench.err;
+  const json b = json::parse(bench.out);
+  EXPECT_EQ(b.at("steps"), 8);
+  EXPECT_GT(b.at("rigid_share").get<double>(), 0.0);
+  EXPECT_LT(b.at("setup_s").get<double>(), 60.0) << "the bench's set-up relaxes or settles something";
 }
