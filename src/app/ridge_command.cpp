@@ -172,8 +172,11 @@ int ridge_command(const std::string& scene_path, const std::string& output, std:
   }
   const bool tty = isatty(fileno(stderr));
   auto progress = [&](const rigid::RidgeProgress& p) {
-    std::fprintf(stderr, "%s[ridge] %-7s t = %7.2f / %.0f s  KE/block = %.3e J  blocks = %zu%s", tty ? "\r" : "",
-                 p.phase, p.time, p.max_time, p.kinetic_energy_per_block, p.blocks, tty ? "" : "\n");
+    char disp[64] = "";
+    if (p.max_displacement >= 0.0 && std::isfinite(p.max_displacement))
+      std::snprintf(disp, sizeof disp, "  max moved in 1 s = %.2e m", p.max_displacement);
+    std::fprintf(stderr, "%s[ridge] %-7s t = %7.2f / %.0f s  KE/block = %.3e J  blocks = %zu%s%s", tty ? "\r" : "",
+                 p.phase, p.time, p.max_time, p.kinetic_energy_per_block, p.blocks, disp, tty ? "" : "\n");
   };
   const rigid::RidgeResult r = rigid::generate_ridge(def, progress);
   if (tty) std::fprintf(stderr, "\n");

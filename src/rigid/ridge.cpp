@@ -442,6 +442,7 @@ void validate(const RidgeDef& d, const std::string& P) {
       "too large for the linear water drag: need linear_drag dt / (ice_density block_thickness) < 1");
   req(s.solver_iterations >= 1, "settle/solver_iterations", "must be >= 1");
   req(s.kinetic_energy_per_block > 0.0, "settle/kinetic_energy_per_block", "must be > 0 (J)");
+  req(s.max_displacement >= 0.0, "settle/max_displacement", "must be >= 0 (m; 0 = not checked)");
   req(s.min_time >= 0.0, "settle/min_time", "must be >= 0 (s)");
   req(s.max_time >= s.min_time, "settle/max_time", "must be >= min_time (s)");
   req(s.friction >= 0.0, "settle/friction", "must be >= 0");
@@ -493,10 +494,11 @@ struct RidgeRun {
   RidgeRun(const RidgeDef& def, const RidgeProgressFn& p) : d(def), progress(p), rng(def.seed) {
     d.aspect.log_params(lnm, lns);
   }
-  void report(const char* phase, double t, double ke, std::size_t n) const {
+  void report(const char* phase, double t, double ke, std::size_t n, double disp = -1.0) const {
     if (!progress) return;
     RidgeProgress q;
     q.phase = phase;
+    q.max_displacement = disp;
     q.time = t;
     q.max_time = d.settle.max_time;
     q.kinetic_energy_per_block = ke;
@@ -840,10 +842,13 @@ class Settling {
       if (steps % check_every_ != 0) continue;
       const double t = world_.time();
       ke = world_.kinetic_energy() / static_cast<double>(n_);
-      run_.report(compacting ? "compact" : "settle", t, ke, n_);
       snapshot();
+      run_.report(compacting ? "compact" : "settle", t, ke, n_, last_second_max_displacement());
       bool phase_done = false;
-      if (t - phase_start >= d_.settle.min_time && ke < d_.settle.kinetic_energy_per_block) {
+      // The displacement test is the settle phase's (compaction ends at its time anyway).
+      const bool still = compacting || !(d_.settle.max_displacement > 0.0) ||
+                         (t - phase_start >= 1.0 && last_second_max_displacement() < d_.settle.max_displacement);
+      if (t - phase_start >= d_.settle.min_time && ke < d_.settle.kinetic_energy_per_block && still) {
         below += check_every_ * d_.settle.dt;
         phase_done = below >= 1.0 - 1e-9;
       } else {
@@ -896,6 +901,15 @@ class Settling {
     std::vector<Vec3>& v = snaps_[nsnap_++ % ring_];
     v.resize(n_);
     for (std::size_t i = 0; i < n_; ++i) v[i] = world_.position(ids_[i]);
+  }
+  /// Largest block displacement since the oldest snapshot in the ring (<= 1 s ago), m.
+  double last_second_max_displacement() const {
+    if (nsnap_ < 2) return std::numeric_limits<double>::infinity();
+    const std::vector<Vec3>& old = snaps_[nsnap_ >= static_cast<std::uint64_t>(ring_) ? nsnap_ % ring_ : 0];
+    const std::vector<Vec3>& now = snaps_[(nsnap_ - 1) % ring_];
+    double m = 0.0;
+    for (std::size_t i = 0; i < n_; ++i) m = std::max(m, (now[i] - old[i]).norm());
+    return m;
   }
   void final_displacement(RidgeStats& st) const {
     if (nsnap_ < 2) return;  // displacement since the oldest snapshot in the ring (<= 1 s ago)
@@ -1321,7 +1335,8 @@ void read_ridge_blocks(const JsonObject& r, RidgeDef& d) {
 
 void read_ridge_settle(const JsonObject& r, RidgeSettleDef& s) {
   const JsonObject o = r.object("settle",
-                                {"dt", "solver_iterations", "kinetic_energy_per_block", "min_time", "max_time",
+                                {"dt", "solver_iterations", "kinetic_energy_per_block", "max_displacement", "min_time",
+                                 "max_time",
                                  "friction", "linear_drag", "quadratic_drag_cd", "speed_cap_factor", "allow_sleep",
                                  "compaction_friction", "compaction_time", "compaction_solver_iterations", "damping",
                                  "fixed_friction_directions"},
@@ -1331,6 +1346,8 @@ void read_ridge_settle(const JsonObject& r, RidgeSettleDef& s) {
   s.solver_iterations = o.integer<int>("solver_iterations", s.solver_iterations, Range::any(), "", "e.g. 20");
   s.kinetic_energy_per_block =
       o.number("kinetic_energy_per_block", s.kinetic_energy_per_block, Range::any(), "J", "settled below, e.g. 0.01");
+  s.max_displacement = o.number("max_displacement", s.max_displacement, Range::any(), "m",
+                                "largest block displacement in the last second, e.g. 0.002 (0: not checked)");
   s.min_time = o.number("min_time", s.min_time, Range::any(), "s", hint);
   s.max_time = o.number("max_time", s.max_time, Range::any(), "s", hint);
   s.friction = o.number("friction", s.friction, Range::any(), "", "ice-ice Coulomb coefficient, e.g. 0.5");
@@ -1404,6 +1421,7 @@ nlohmann::json ridge_def_to_json(const RidgeDef& d) {
   j["settle"] = {{"dt", d.settle.dt},
                  {"solver_iterations", d.settle.solver_iterations},
                  {"kinetic_energy_per_block", d.settle.kinetic_energy_per_block},
+                 {"max_displacement", d.settle.max_displacement},
                  {"min_time", d.settle.min_time},
                  {"max_time", d.settle.max_time},
                  {"friction", d.settle.friction},

@@ -56,6 +56,10 @@ struct RidgeSettleDef {
   int solver_iterations = 20;
   /// Settled when the mean kinetic energy per block stays below this for 1 s, J.
   double kinetic_energy_per_block = 0.01;
+  /// And (settle phase, when > 0) every block moved less than this over that last second, m:
+  /// the mean energy passes while single blocks still slide through the pile at cm/s, and
+  /// those keep sliding in the run (docs/ridge.md, "Settled"). 0 = energy only.
+  double max_displacement = 0.0;
   double min_time = 2.0;   ///< s, never stop before this
   double max_time = 150.0; ///< s, stop here even if not settled (stats.settled = false)
   double friction = 0.5;   ///< ice-ice Coulomb coefficient while settling
@@ -242,6 +246,8 @@ struct RidgeProgress {
   double max_time = 0.0;
   double kinetic_energy_per_block = 0.0;
   std::size_t blocks = 0;
+  /// Largest block displacement over the last second, m (settle phases; < 0: not measured).
+  double max_displacement = -1.0;
 };
 using RidgeProgressFn = std::function<void(const RidgeProgress&)>;
 

@@ -127,6 +127,25 @@ TEST(Ridge, BlocksDoNotOverlapAfterSettling) {
   EXPECT_LT(worst, 0.03);  // m: Bullet's resting penetration, << 0.2 m block thickness
 }
 
+// settle.max_displacement: the settle phase goes on until no block moved more than that in the
+// last second (besides the energy test). Control: the same ridge on the energy test alone stops
+// with a block still moving more.
+TEST(Ridge, SettleWaitsForTheLargestDisplacementWhenAsked) {
+  const RidgeStats& plain = small_ridge().stats;
+  RidgeDef d = small_def();
+  d.settle.max_displacement = 3e-3;
+  d.settle.max_time = 150.0;
+  const RidgeStats s = generate_ridge(d).stats;
+  std::printf("[ ridge ] energy only: settled %d at %.2f s, largest last-second displacement %.2e m; "
+              "with max_displacement %.0e m: settled %d at %.2f s, %.2e m\n",
+              int(plain.settled), plain.settle_time, plain.final_max_displacement, d.settle.max_displacement,
+              int(s.settled), s.settle_time, s.final_max_displacement);
+  EXPECT_TRUE(s.settled);
+  EXPECT_LT(s.final_max_displacement, d.settle.max_displacement);
+  EXPECT_GT(plain.final_max_displacement, d.settle.max_displacement);  // the control
+  EXPECT_GT(s.settle_time, plain.settle_time);
+}
+
 TEST(Ridge, SameSeedIdenticalDifferentSeedDifferent) {
   const RidgeResult again = generate_ridge(small_def(11));
   EXPECT_TRUE(bit_equal(flatten(small_ridge()), flatten(again)));
