@@ -308,10 +308,11 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
         last_line = Clock::now();
         std::fprintf(progress,
                      "relax t = %.4g s of at most %g s: fastest block %.3g m/s at (%.4g %.4g %.4g), particle %.3g m/s "
-                     "at (%.4g %.4g %.4g), block KE %.3g J, below %g m/s for %.3g s\n",
+                     "at (%.4g %.4g %.4g), block KE %.3g J, below %g m/s for %.3g s, lattice bonds broken %llu\n",
                      p.time, s.blocks.relax.max_time, p.max_block_speed, p.fastest_block.x(), p.fastest_block.y(),
                      p.fastest_block.z(), p.max_particle_speed, p.fastest_particle.x(), p.fastest_particle.y(),
-                     p.fastest_particle.z(), p.block_kinetic_energy, s.blocks.relax.speed, p.quiet_time);
+                     p.fastest_particle.z(), p.block_kinetic_energy, s.blocks.relax.speed, p.quiet_time,
+                     static_cast<unsigned long long>(p.lattice_bonds_broken));
         std::fflush(progress);
       }
       if (comm.parallel() && ++calls % kMpiPollSteps != 0) return false;

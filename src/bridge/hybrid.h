@@ -117,6 +117,9 @@ struct RelaxProgress {
   Vec3 fastest_particle = Vec3::Zero();  ///< m, centre of the fastest particle
   double block_kinetic_energy = 0.0; ///< J
   double quiet_time = 0.0;           ///< s for which both speeds have been below RelaxDef::speed
+  /// Lattice bonds broken since the relaxation began (a sheet too weak for the keel's load breaks
+  /// here, and each break kicks its particles: docs/bridge.md, "Relaxation").
+  std::uint64_t lattice_bonds_broken = 0;
 };
 /// Called every rigid step of the relaxation; return true to stop it there (a SIGINT).
 using RelaxProgressFn = std::function<bool(const RelaxProgress&)>;

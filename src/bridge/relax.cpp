@@ -99,6 +99,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
       }
     P.max_particle_speed = std::sqrt(v2);
     P.block_kinetic_energy = world_->kinetic_energy();
+    P.lattice_bonds_broken = engine_.stats().bonds_broken - broken0;
     P.quiet_time = P.max_block_speed < def.speed && P.max_particle_speed < def.speed ? P.quiet_time + h : 0.0;
     double mean = 0.0, max_abs = 0.0;
     sheet_dz(mean, max_abs);
