@@ -843,11 +843,12 @@ class Settling {
       const double t = world_.time();
       ke = world_.kinetic_energy() / static_cast<double>(n_);
       snapshot();
-      run_.report(compacting ? "compact" : "settle", t, ke, n_, last_second_max_displacement());
+      const double moved = last_second_max_displacement();
+      run_.report(compacting ? "compact" : "settle", t, ke, n_, moved);
       bool phase_done = false;
       // The displacement test is the settle phase's (compaction ends at its time anyway).
       const bool still = compacting || !(d_.settle.max_displacement > 0.0) ||
-                         (t - phase_start >= 1.0 && last_second_max_displacement() < d_.settle.max_displacement);
+                         (t - phase_start >= 1.0 && moved < d_.settle.max_displacement);
       if (t - phase_start >= d_.settle.min_time && ke < d_.settle.kinetic_energy_per_block && still) {
         below += check_every_ * d_.settle.dt;
         phase_done = below >= 1.0 - 1e-9;
@@ -902,19 +903,24 @@ class Settling {
     v.resize(n_);
     for (std::size_t i = 0; i < n_; ++i) v[i] = world_.position(ids_[i]);
   }
-  /// Largest block displacement since the oldest snapshot in the ring (<= 1 s ago), m.
+  /// The oldest snapshot in the ring (<= 1 s ago) and the newest; needs nsnap_ >= 2.
+  const std::vector<Vec3>& oldest_snapshot() const {
+    return snaps_[nsnap_ >= static_cast<std::uint64_t>(ring_) ? nsnap_ % ring_ : 0];
+  }
+  const std::vector<Vec3>& newest_snapshot() const { return snaps_[(nsnap_ - 1) % ring_]; }
+  /// Largest block displacement since the oldest snapshot in the ring, m.
   double last_second_max_displacement() const {
     if (nsnap_ < 2) return std::numeric_limits<double>::infinity();
-    const std::vector<Vec3>& old = snaps_[nsnap_ >= static_cast<std::uint64_t>(ring_) ? nsnap_ % ring_ : 0];
-    const std::vector<Vec3>& now = snaps_[(nsnap_ - 1) % ring_];
+    const std::vector<Vec3>& old = oldest_snapshot();
+    const std::vector<Vec3>& now = newest_snapshot();
     double m = 0.0;
     for (std::size_t i = 0; i < n_; ++i) m = std::max(m, (now[i] - old[i]).norm());
     return m;
   }
   void final_displacement(RidgeStats& st) const {
     if (nsnap_ < 2) return;  // displacement since the oldest snapshot in the ring (<= 1 s ago)
-    const std::vector<Vec3>& old = snaps_[nsnap_ >= static_cast<std::uint64_t>(ring_) ? nsnap_ % ring_ : 0];
-    const std::vector<Vec3>& now = snaps_[(nsnap_ - 1) % ring_];
+    const std::vector<Vec3>& old = oldest_snapshot();
+    const std::vector<Vec3>& now = newest_snapshot();
     double sum = 0.0;
     for (std::size_t i = 0; i < n_; ++i) {
       const double dd = (now[i] - old[i]).norm();

@@ -58,7 +58,7 @@ struct RidgeSettleDef {
   double kinetic_energy_per_block = 0.01;
   /// And (settle phase, when > 0) every block moved less than this over that last second, m:
   /// the mean energy passes while single blocks still slide through the pile at cm/s, and
-  /// those keep sliding in the run (docs/ridge.md, "Settled"). 0 = energy only.
+  /// those keep sliding in the run (docs/ridge.md, Method 4, "Settle"). 0 = energy only.
   double max_displacement = 0.0;
   double min_time = 2.0;   ///< s, never stop before this
   double max_time = 150.0; ///< s, stop here even if not settled (stats.settled = false)
