@@ -49,6 +49,11 @@ def main():
             r = f["analysis/relaxation"].attrs
             out["relax_time"] = float(r["time"])
             out["relax_converged"] = int(r["converged"])
+            if "jointed_time" in r and float(r["jointed_time"]) > 0:
+                out["relax_jointed_time"] = float(r["jointed_time"])
+                if "at_rest" in r:
+                    out["relax_at_rest"] = int(r["at_rest"])
+                out["relax_joints_overloaded"] = int(r["joints_overloaded"])
     for k, v in out.items():
         print(f"{k:22s} {v}")
     if a.limits:

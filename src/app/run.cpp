@@ -108,6 +108,8 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
   const auto& r = sim.hybrid().report();
   out << "blocks:           " << hsu.blocks.size() << " rigid (" << hsu.ridge_blocks_in_file << " in the ridge file";
   if (fixed) out << ", " << fixed << " fixed";
+  if (hsu.loose_blocks_dropped)
+    out << ", " << hsu.loose_blocks_dropped << " without a joint left out: blocks.loose_blocks";
   out << "), " << hsu.joints.size() << " freeze joints, " << sci(vol, 4) << " m^3 of ice (~" << sci(est, 3)
       << " particles if all converted); conversion \"" << bridge::to_string(hsu.def.mode) << "\"\n";
   out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
@@ -116,7 +118,10 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
   if (x.enabled)
     out << "relaxation:       before the freeze, up to " << x.max_time << " s simulated (at rest: below " << x.speed
         << " m/s for " << x.hold << " s" << (x.damping > 0 ? ", damping " + sci(x.damping, 3) + " 1/s" : std::string())
-        << "); not in the time estimate below\n";
+        << ")"
+        << (x.jointed_time > 0 ? ", then up to " + sci(x.jointed_time, 3) + " s with the joints between blocks held"
+                               : std::string())
+        << "; not in the time estimate below\n";
   else
     out << "relaxation:       off (joints and freeze bonds made at the blocks' starting poses)\n";
 }
@@ -307,9 +312,10 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       if (seconds_since(last_line) >= 5.0) {
         last_line = Clock::now();
         std::fprintf(progress,
-                     "relax t = %.4g s of at most %g s: fastest block %.3g m/s at (%.4g %.4g %.4g), particle %.3g m/s "
+                     "relax%s t = %.4g s of at most %g s: fastest block %.3g m/s at (%.4g %.4g %.4g), particle %.3g m/s "
                      "at (%.4g %.4g %.4g), block KE %.3g J, below %g m/s for %.3g s, lattice bonds broken %llu\n",
-                     p.time, s.blocks.relax.max_time, p.max_block_speed, p.fastest_block.x(), p.fastest_block.y(),
+                     p.stage == 2 ? " (jointed stage)" : "", p.time,
+                     s.blocks.relax.max_time + (p.stage == 2 ? s.blocks.relax.jointed_time : 0.0), p.max_block_speed, p.fastest_block.x(), p.fastest_block.y(),
                      p.fastest_block.z(), p.max_particle_speed, p.fastest_particle.x(), p.fastest_particle.y(),
                      p.fastest_particle.z(), p.block_kinetic_energy, s.blocks.relax.speed, p.quiet_time,
                      static_cast<unsigned long long>(p.lattice_bonds_broken));

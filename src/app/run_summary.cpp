@@ -37,9 +37,15 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
                    "hybridsim: relaxation before the freeze: %.4g s (%llu steps), %s; at its end fastest block %.3g "
                    "m/s, particle %.3g m/s, block KE %.3g J; sheet moved %.3g m on average (largest |dz| %.3g m), "
                    "%llu lattice bonds broken; t = 0 from here\n",
-                   x.time, static_cast<unsigned long long>(x.steps), x.converged ? "at rest" : "NOT at rest",
+                   x.time, static_cast<unsigned long long>(x.steps), x.at_rest() ? "at rest" : "NOT at rest",
                    x.max_block_speed, x.max_particle_speed, x.block_kinetic_energy, x.sheet_mean_dz, x.sheet_max_dz,
                    static_cast<unsigned long long>(x.lattice_bonds_broken));
+    if (x.ran && x.jointed_time > 0.0)
+      std::fprintf(progress,
+                   "hybridsim: of it, %.4g s with the %llu joints between blocks held (fastest block %.3g m/s when "
+                   "it began), %s; %llu joints loaded beyond their strength at its end\n",
+                   x.jointed_time, static_cast<unsigned long long>(x.jointed_joints), x.unjointed_max_block_speed,
+                   x.jointed_converged ? "at rest" : "NOT at rest", static_cast<unsigned long long>(x.joints_overloaded));
   }
   if (comm.parallel()) {
     const auto& g = e.decomposition().dims();
@@ -71,7 +77,7 @@ void print_blocks(std::ostream& out, const sim::Simulation& sim) {
       << sci(r.kinetic_energy_change, 3) << " J\n";
   const auto& x = h.relax_report();
   if (x.ran)
-    out << "  relaxation before the freeze: " << sci(x.time, 4) << " s, " << (x.converged ? "at rest" : "NOT at rest")
+    out << "  relaxation before the freeze: " << sci(x.time, 4) << " s, " << (x.at_rest() ? "at rest" : "NOT at rest")
         << " (fastest block " << sci(x.max_block_speed, 3) << " m/s, particle " << sci(x.max_particle_speed, 3)
         << " m/s at its end; sheet mean dz " << sci(x.sheet_mean_dz, 3) << " m)\n";
   out << "  time: bonded " << sci(r.seconds_bonded, 4) << " s, rigid " << sci(r.seconds_rigid, 4)

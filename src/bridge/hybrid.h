@@ -106,6 +106,14 @@ struct RelaxDef {
   /// 1/s: velocities scaled by exp(-damping dt) every step of the relaxation (blocks every rigid
   /// step); a set-up device that speeds the rest up, not physics. 0 = none.
   double damping = 0.0;
+  /// s: after the relaxation above, a second stage of at most this long (0 = none) with the
+  /// joints between blocks made, stress free at the poses it starts from, and unbreakable (the
+  /// damping and the rest test as above): it stops the blocks friction alone cannot hold in a
+  /// keel steeper than the friction angle, which creep through the joint-free stage. The joints
+  /// stay as they are at its end and become breakable at the freeze (their load then is the
+  /// keel's static one); the block-particle bonds are made at the freeze as without it
+  /// (docs/bridge.md, "Relaxation").
+  double jointed_time = 0.0;
 };
 
 /// Where a relaxation is (every rigid step, for progress lines).
@@ -120,6 +128,7 @@ struct RelaxProgress {
   /// Lattice bonds broken since the relaxation began (a sheet too weak for the keel's load breaks
   /// here, and each break kicks its particles: docs/bridge.md, "Relaxation").
   std::uint64_t lattice_bonds_broken = 0;
+  int stage = 1;  ///< 1: without joints; 2: the jointed stage (RelaxDef::jointed_time)
 };
 /// Called every rigid step of the relaxation; return true to stop it there (a SIGINT).
 using RelaxProgressFn = std::function<bool(const RelaxProgress&)>;
@@ -136,6 +145,14 @@ struct RelaxReport {
   double sheet_mean_dz = 0.0;   ///< m: mean vertical displacement of the sheet's particles at the end
   double sheet_max_dz = 0.0;    ///< m: largest |vertical displacement| of a particle at the end
   double sheet_peak_mean_dz = 0.0;  ///< m: largest |mean vertical displacement| during the relaxation
+  // The jointed stage (RelaxDef::jointed_time); time above includes it, converged is the first stage's.
+  double jointed_time = 0.0;          ///< s of it run (0: none)
+  std::uint64_t jointed_converged = 0;  ///< 1: at rest before jointed_time
+  std::uint64_t jointed_joints = 0;     ///< joints between blocks it held
+  std::uint64_t joints_overloaded = 0;  ///< of those, loaded beyond their strength at its end
+  double unjointed_max_block_speed = 0.0;  ///< m/s: fastest block when it began
+  /// At rest at the freeze: the jointed stage's verdict when it ran, else the first stage's.
+  bool at_rest() const { return jointed_time > 0.0 ? jointed_converged != 0 : converged != 0; }
   RelaxDef def;                 ///< the settings
 };
 
@@ -281,6 +298,14 @@ class HybridSystem {
   /// The pending freeze joints into the rigid world and the pending ice joints as block-particle
   /// bonds, carried to the blocks' current poses (relax.cpp).
   void make_pending_joints();
+  /// The ridge's joints between blocks (pending_joints) at the blocks' poses now; none pending after.
+  void make_pending_block_joints();
+  /// A point / direction given at block k's starting pose, carried with its motion since.
+  Vec3 pending_point(std::size_t k, const Vec3& point) const;
+  Vec3 pending_direction(std::size_t k, const Vec3& dir) const;
+  /// The relaxation's jointed stage (RelaxDef::jointed_time): the world saved for checkpoints,
+  /// the block joints made, unbreakable until the freeze.
+  void begin_jointed_stage();
   /// all_at_start with a relaxation: the joints made at the blocks' starting poses, every block
   /// converted (their joints becoming freeze bonds as at any conversion), then those bonds and
   /// the joints left between blocks that stay rigid held back for freeze() (relax.cpp).

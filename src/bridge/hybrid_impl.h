@@ -49,6 +49,9 @@ struct HybridSystem::Impl {
   std::vector<bonded::Bond> held_bonds;             ///< particle-particle freeze bonds
   std::vector<BlockParticleBond> held_block_bonds;  ///< block-particle freeze bonds
   StateArchive relaxed_world;  ///< the rigid world at the end of the relaxation (checkpoints)
+  /// The rigid world when the jointed stage began (its joints are made from these poses again
+  /// when a checkpoint restores the relaxation).
+  StateArchive unjointed_world;
   RelaxReport relax;
   /// Per block k: 1 when ref[k] has v = w = 0 and the contact and bonds already hold its pose
   /// (extrapolation would set the same values again); cleared whenever ref[k] may change.

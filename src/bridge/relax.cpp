@@ -62,56 +62,70 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
   const std::uint64_t broken0 = engine_.stats().bonds_broken;
   const std::uint64_t k = report_.steps_per_rigid_step;
   const double h = report_.rigid_dt, dt = engine_.dt();
-  const auto max_rigid = static_cast<std::uint64_t>(std::ceil(def.max_time / h - 1e-9));
   const double fp = std::exp(-def.damping * dt), fb = std::exp(-def.damping * h);
   RelaxProgress P;
-  for (std::uint64_t r = 0; r < max_rigid; ++r) {
-    for (std::uint64_t s = 0; s < k; ++s) {
-      step();
-      ++R.steps;
-      if (def.damping > 0.0)
-        for (std::size_t i = 0; i < ps.owned(); ++i) {
-          ps.v[i] *= fp;
-          ps.omega[i] *= fp;
-        }
-    }
-    ++R.rigid_steps;
-    if (def.damping > 0.0) {
+  // Up to `duration` s more: true when at rest (the speeds below def.speed for def.hold s).
+  const auto run_stage = [&](double duration) {
+    const auto n = static_cast<std::uint64_t>(std::ceil(duration / h - 1e-9));
+    P.quiet_time = 0.0;
+    for (std::uint64_t r = 0; r < n; ++r) {
+      for (std::uint64_t s = 0; s < k; ++s) {
+        step();
+        ++R.steps;
+        if (def.damping > 0.0)
+          for (std::size_t i = 0; i < ps.owned(); ++i) {
+            ps.v[i] *= fp;
+            ps.omega[i] *= fp;
+          }
+      }
+      ++R.rigid_steps;
+      if (def.damping > 0.0) {
+        for (const rigid::BlockId id : m.ids)
+          if (!world_->fixed(id)) world_->set_velocity(id, fb * world_->velocity(id), fb * world_->angular_velocity(id));
+        m.take_reference(*world_);
+      }
+      P.time = static_cast<double>(R.rigid_steps) * h;
+      P.max_block_speed = 0.0;
       for (const rigid::BlockId id : m.ids)
-        if (!world_->fixed(id)) world_->set_velocity(id, fb * world_->velocity(id), fb * world_->angular_velocity(id));
-      m.take_reference(*world_);
-    }
-    P.time = static_cast<double>(R.rigid_steps) * h;
-    P.max_block_speed = 0.0;
-    for (const rigid::BlockId id : m.ids)
-      if (!world_->fixed(id)) {
-        const double v = block_speed(*world_, id);
-        if (v > P.max_block_speed) {
-          P.max_block_speed = v;
-          P.fastest_block = world_->position(id);
+        if (!world_->fixed(id)) {
+          const double v = block_speed(*world_, id);
+          if (v > P.max_block_speed) {
+            P.max_block_speed = v;
+            P.fastest_block = world_->position(id);
+          }
         }
+      double v2 = 0.0;
+      for (std::size_t i = 0; i < ps.owned(); ++i)
+        if (ps.v[i].squaredNorm() > v2) {
+          v2 = ps.v[i].squaredNorm();
+          P.fastest_particle = ps.x[i];
+        }
+      P.max_particle_speed = std::sqrt(v2);
+      P.block_kinetic_energy = world_->kinetic_energy();
+      P.lattice_bonds_broken = engine_.stats().bonds_broken - broken0;
+      P.quiet_time = P.max_block_speed < def.speed && P.max_particle_speed < def.speed ? P.quiet_time + h : 0.0;
+      double mean = 0.0, max_abs = 0.0;
+      sheet_dz(mean, max_abs);
+      R.sheet_peak_mean_dz = std::max(R.sheet_peak_mean_dz, std::abs(mean));
+      if (progress && progress(P)) {
+        R.stopped = 1;
+        return false;
       }
-    double v2 = 0.0;
-    for (std::size_t i = 0; i < ps.owned(); ++i)
-      if (ps.v[i].squaredNorm() > v2) {
-        v2 = ps.v[i].squaredNorm();
-        P.fastest_particle = ps.x[i];
-      }
-    P.max_particle_speed = std::sqrt(v2);
-    P.block_kinetic_energy = world_->kinetic_energy();
-    P.lattice_bonds_broken = engine_.stats().bonds_broken - broken0;
-    P.quiet_time = P.max_block_speed < def.speed && P.max_particle_speed < def.speed ? P.quiet_time + h : 0.0;
-    double mean = 0.0, max_abs = 0.0;
-    sheet_dz(mean, max_abs);
-    R.sheet_peak_mean_dz = std::max(R.sheet_peak_mean_dz, std::abs(mean));
-    if (progress && progress(P)) {
-      R.stopped = 1;
-      break;
+      if (P.quiet_time >= def.hold - 1e-12) return true;
     }
-    if (P.quiet_time >= def.hold - 1e-12) {
-      R.converged = 1;
-      break;
-    }
+    return false;
+  };
+  R.converged = run_stage(def.max_time) ? 1 : 0;
+  if (!R.stopped && def.jointed_time > 0.0) {
+    R.unjointed_max_block_speed = P.max_block_speed;
+    const double t1 = P.time;
+    begin_jointed_stage();
+    P.stage = 2;
+    R.jointed_converged = run_stage(def.jointed_time) ? 1 : 0;
+    R.jointed_time = P.time - t1;
+    R.jointed_joints = world_->joint_count();
+    R.joints_overloaded = world_->overloaded_joint_count();
+    world_->set_joints_breakable(true);
   }
   R.time = P.time;
   R.max_block_speed = P.max_block_speed;
@@ -126,6 +140,14 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
   return R;
 }
 
+void HybridSystem::begin_jointed_stage() {
+  Impl& m = *impl_;
+  m.unjointed_world.entries.clear();
+  world_->save_state(m.unjointed_world, "");
+  make_pending_block_joints();
+  world_->set_joints_breakable(false);
+}
+
 void HybridSystem::restore_relaxation(const StateArchive& a, const std::string& p) {
   Impl& m = *impl_;
   if (!m.freeze_pending) return;
@@ -137,9 +159,17 @@ void HybridSystem::restore_relaxation(const StateArchive& a, const std::string& 
   // The same conversion as before the original relaxation (same blocks, same steps): the world
   // then holds the blocks the saved one did; the engine's particles are restored afterwards.
   if (m.def.mode == ConversionMode::AllAtStart) convert_before_relaxation();
-  m.relaxed_world.entries.clear();
-  for (const auto& [key, value] : a.entries)
-    if (key.compare(0, pre.size(), pre) == 0) m.relaxed_world.entries.emplace(key.substr(pre.size()), value);
+  const auto read = [&](const std::string& prefix, StateArchive& out) {
+    out.entries.clear();
+    for (const auto& [key, value] : a.entries)
+      if (key.compare(0, prefix.size(), prefix) == 0) out.entries.emplace(key.substr(prefix.size()), value);
+  };
+  if (m.relax.jointed_time > 0.0) {  // the joints of the jointed stage, made from the same poses as then
+    read(p + "unjointed/", m.unjointed_world);
+    world_->load_state(m.unjointed_world, "");
+    make_pending_block_joints();
+  }
+  read(pre, m.relaxed_world);
   world_->load_state(m.relaxed_world, "");
   m.take_reference(*world_);
   freeze();
@@ -168,25 +198,35 @@ void HybridSystem::freeze() {
   report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());
 }
 
+void HybridSystem::make_pending_block_joints() {
+  Impl& m = *impl_;
+  for (const auto& j : m.pending_joints)
+    world_->add_freeze_joint(rigid::FreezeJointDef{m.pending_ids.at(j.a), m.pending_ids.at(j.b),
+                                                   pending_point(j.a, j.anchor), pending_direction(j.a, j.normal),
+                                                   j.area});
+  m.pending_joints.clear();
+}
+
+Vec3 HybridSystem::pending_point(std::size_t k, const Vec3& point) const {
+  const Impl& m = *impl_;
+  const rigid::BlockId id = m.pending_ids.at(k);
+  return world_->position(id) + world_->orientation(id) * (m.q0[k].conjugate() * (point - m.x0[k]));
+}
+
+Vec3 HybridSystem::pending_direction(std::size_t k, const Vec3& dir) const {
+  const Impl& m = *impl_;
+  return world_->orientation(m.pending_ids.at(k)) * (m.q0[k].conjugate() * dir);
+}
+
 void HybridSystem::make_pending_joints() {
   Impl& m = *impl_;
-  // A point given at the blocks' starting poses, carried with block k's motion since.
-  const auto moved = [&](std::size_t k, const Vec3& point) {
-    const rigid::BlockId id = m.pending_ids.at(k);
-    return Vec3(world_->position(id) + world_->orientation(id) * (m.q0[k].conjugate() * (point - m.x0[k])));
-  };
-  const auto turned = [&](std::size_t k, const Vec3& dir) {
-    return Vec3(world_->orientation(m.pending_ids.at(k)) * (m.q0[k].conjugate() * dir));
-  };
-  for (const auto& j : m.pending_joints)
-    world_->add_freeze_joint(rigid::FreezeJointDef{m.pending_ids.at(j.a), m.pending_ids.at(j.b), moved(j.a, j.anchor),
-                                                   turned(j.a, j.normal), j.area});
+  make_pending_block_joints();  // none left when the relaxation's jointed stage made them
   m.take_reference(*world_);
   m.extrapolate(world_->time());
   for (const auto& j : m.pending_ice_joints)
     report_.ice_bonds_created += m.bonds.bond_patch(engine_.particles(), m.pending_ids.at(j.block).index,
-                                                    moved(j.block, j.anchor), turned(j.block, j.normal), j.area);
-  m.pending_joints.clear();
+                                                    pending_point(j.block, j.anchor),
+                                                    pending_direction(j.block, j.normal), j.area);
   m.pending_ice_joints.clear();
 }
 

@@ -80,6 +80,7 @@ struct JointSlot {
 struct RigidWorld::Impl {
   RigidWorldDef def;
   double tensile_strength = 0.0, shear_strength = 0.0;
+  bool joints_breakable = true;  // RigidWorld::set_joints_breakable
   std::unique_ptr<btDefaultCollisionConfiguration> config;
   std::unique_ptr<btCollisionDispatcher> dispatcher;
   std::unique_ptr<btDbvtBroadphase> broadphase;
@@ -181,6 +182,10 @@ struct RigidWorld::Impl {
     for (const auto& jp : joints) world->joint_order.push_back(jp->constraint.get());
   }
 
+  bool overloaded(const JointSlot& j) const {
+    return j.load.tension > tensile_strength * j.area || j.load.shear > shear_strength * j.area;
+  }
+
   void check_joints() {
     for (auto& jp : joints) {
       JointSlot& j = *jp;
@@ -194,7 +199,7 @@ struct RigidWorld::Impl {
       const double fn = fb.dot(n);
       j.load.tension = -fn;
       j.load.shear = (fb - fn * n).norm();
-      if (j.load.tension > tensile_strength * j.area || j.load.shear > shear_strength * j.area) {
+      if (joints_breakable && overloaded(j)) {
         j.broken = true;
         drop_constraint(j);
         ++broken_joints;
@@ -911,6 +916,15 @@ bool RigidWorld::joint_broken(JointId id) const { return impl_->joint(id).broken
 JointLoad RigidWorld::joint_load(JointId id) const { return impl_->joint(id).load; }
 std::size_t RigidWorld::broken_joint_count() const { return impl_->broken_joints; }
 std::size_t RigidWorld::joint_count() const { return impl_->intact_joints; }
+void RigidWorld::set_joints_breakable(bool on) { impl_->joints_breakable = on; }
+bool RigidWorld::joints_breakable() const { return impl_->joints_breakable; }
+std::size_t RigidWorld::overloaded_joint_count() const {
+  const Impl& m = *impl_;
+  std::size_t n = 0;
+  for (const auto& jp : m.joints)
+    if (jp->alive && !jp->broken && jp->constraint && m.overloaded(*jp)) ++n;
+  return n;
+}
 
 // ---------------------------------------------------------------- checkpoint state
 // Kept at the end of this file (it needs Impl); docs/output.md, "Checkpoints".

@@ -293,6 +293,13 @@ class RigidWorld {
   /// Freeze joints broken since the world was made.
   std::size_t broken_joint_count() const;
   std::size_t joint_count() const;  ///< intact joints
+  /// false: joints hold whatever their load (it is still measured); the relaxation's jointed
+  /// stage (bridge::RelaxDef::jointed_time). Not saved in checkpoints (true after a freeze).
+  void set_joints_breakable(bool on);
+  bool joints_breakable() const;
+  /// Intact joints whose last load exceeds their strength (they break at the next check when
+  /// breakable).
+  std::size_t overloaded_joint_count() const;
 
   // ---- checkpoint (docs/output.md, "Checkpoints"; at the end of rigid_world.cpp) ----
   /// Saves everything a later sub-step reads, under keys prefix + "...": per block slot its

@@ -44,10 +44,10 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/stability", {"max_speed", "max_overlap_ratio"}},
       {"/parallel", {"grid", "balance_interval", "cost"}},
       {"/blocks",
-       {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "list", "density", "friction", "linear_drag",
+       {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "loose_blocks", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "fixed_friction_directions", "rigid_dt", "conversion", "region",
         "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep"}},
-      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping"}},
+      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time"}},
       {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
@@ -461,6 +461,7 @@ void read_block_sources(const JsonObject& o, BlocksDef& b, const std::string& ba
     (std::string(key) == "keep_x" ? b.keep_x : b.keep_y) = {r[0], r[1]};
   }
   b.keep_sail = o.boolean("keep_sail", b.keep_sail);
+  b.loose_blocks = o.choice("loose_blocks", b.loose_blocks, {"drop", "keep"});
   if (o.has("list")) {
     const json& arr = o.array("list", "blocks [{\"half_extents\": [..], \"position\": [..]}, ...]");
     for (std::size_t k = 0; k < arr.size(); ++k)
@@ -499,6 +500,8 @@ void read_relax(const JsonObject& o, BlocksDef::Relax& r) {
   r.hold = x.number("hold", r.hold, Range::non_negative(), "s", "how long the speeds must stay below speed, e.g. 1");
   r.damping = x.number("damping", r.damping, Range::non_negative(), "1/s",
                        "numerical velocity damping during the relaxation only (a set-up device), e.g. 0.5");
+  r.jointed_time = x.number("jointed_time", r.jointed_time, Range::non_negative(), "s",
+                            "a second stage with the joints between blocks held unbreakable, e.g. 2; 0 = none");
 }
 
 /// Rigid ice blocks and their conversion.

@@ -174,6 +174,9 @@ struct BlocksDef {
   Vec3 offset = Vec3::Zero();        ///< added to the ridge file's positions, m
   std::array<double, 2> keep_x{-1e30, 1e30}, keep_y{-1e30, 1e30};  ///< ridge blocks kept (centre), m
   bool keep_sail = true;             ///< keep the ridge file's sail blocks
+  /// Ridge blocks without a joint to another kept block or the ice: "drop" (left out) or "keep"
+  /// (docs/bridge.md, "Relaxation": they creep in a keel steeper than the friction angle).
+  std::string loose_blocks = "drop";
   std::vector<BlockItemDef> list;
   double density = 0.0;              ///< kg/m^3; 0 = material.density
   double friction = -1.0;            ///< ice-ice; < 0 = material.friction
@@ -197,6 +200,7 @@ struct BlocksDef {
     double speed = 0.002;    ///< m/s
     double hold = 1.0;       ///< s
     double damping = 0.0;    ///< 1/s, a set-up device (not physics)
+    double jointed_time = 0.0;  ///< s of the jointed stage after it (bridge::RelaxDef); 0 = none
   } relax;
   /// Not a scene key: false lets the run take a ridge file made with other ice or under fixed
   /// boxes (sim::check_ridge_generation passes). Set by `hybridsim bench hybrid` only, which times

@@ -144,32 +144,15 @@ void add_ridge_blocks(BlockSetup& out, const scene::Scene& s) {
   }
 }
 
-/// Blocks that start inside the structure would be pushed out violently (or, as particles,
-/// stop the run): a parametric pier is a solid of revolution, so a block is dropped when its
-/// bounding sphere reaches inside the pier's radius at any height it spans. Joints follow.
-void drop_blocks_inside_pier(BlockSetup& out, const scene::StructureDef& st) {
+/// Keeps the blocks whose flag is set (in order) and the joints between kept blocks, renumbered.
+void keep_blocks(BlockSetup& out, const std::vector<char>& keep) {
   std::vector<bridge::BlockInit> kept;
   std::vector<long> index(out.blocks.size(), -1);
-  std::size_t dropped = 0;
-  for (std::size_t k = 0; k < out.blocks.size(); ++k) {
-    const auto& bd = out.blocks[k].def;
-    const Vec3 rel = bd.position - st.position;
-    if (bd.fixed) {  // immovable: nothing to push out (a fixed box reaching into the pier is the scene's choice)
+  for (std::size_t k = 0; k < out.blocks.size(); ++k)
+    if (keep[k]) {
       index[k] = static_cast<long>(kept.size());
       kept.push_back(out.blocks[k]);
-      continue;
     }
-    const double R = bd.half_extents.norm();
-    double r_pier = 0.0;
-    for (int q = -4; q <= 4; ++q) r_pier = std::max(r_pier, mesh::pier_radius_at(st.pier, rel.z() + 0.25 * q * R));
-    if (std::hypot(rel.x(), rel.y()) < r_pier + R) {
-      ++dropped;
-      continue;
-    }
-    index[k] = static_cast<long>(kept.size());
-    kept.push_back(out.blocks[k]);
-  }
-  if (!dropped) return;
   std::vector<bridge::JointInit> joints;
   for (auto j : out.joints)
     if (index[j.a] >= 0 && index[j.b] >= 0) {
@@ -186,6 +169,44 @@ void drop_blocks_inside_pier(BlockSetup& out, const scene::StructureDef& st) {
     }
   out.ice_joints = std::move(ice);
   out.blocks = std::move(kept);
+}
+
+/// Ridge blocks frozen to nothing (no joint to another kept block or to the ice: the generator
+/// found no face within the joint gap, only edges and corners) are loose rubble that friction
+/// alone must hold; in a keel steeper than the friction angle they creep for as long as a
+/// relaxation lasts and go on after the freeze (docs/bridge.md, "Relaxation").
+/// blocks.loose_blocks = "drop" leaves them out (the default), "keep" keeps them.
+void drop_loose_blocks(BlockSetup& out) {
+  std::vector<char> jointed(out.blocks.size(), 0);
+  for (const auto& j : out.joints) jointed[j.a] = jointed[j.b] = 1;
+  for (const auto& j : out.ice_joints) jointed[j.block] = 1;
+  for (std::size_t k = 0; k < out.blocks.size(); ++k)
+    if (!jointed[k] && !out.blocks[k].def.fixed) ++out.loose_blocks_dropped;
+  if (!out.loose_blocks_dropped) return;
+  for (std::size_t k = 0; k < out.blocks.size(); ++k) jointed[k] |= out.blocks[k].def.fixed ? 1 : 0;
+  keep_blocks(out, jointed);
+}
+
+/// Blocks that start inside the structure would be pushed out violently (or, as particles,
+/// stop the run): a parametric pier is a solid of revolution, so a block is dropped when its
+/// bounding sphere reaches inside the pier's radius at any height it spans. Joints follow.
+void drop_blocks_inside_pier(BlockSetup& out, const scene::StructureDef& st) {
+  std::vector<char> keep(out.blocks.size(), 1);
+  std::size_t dropped = 0;
+  for (std::size_t k = 0; k < out.blocks.size(); ++k) {
+    const auto& bd = out.blocks[k].def;
+    if (bd.fixed) continue;  // immovable: nothing to push out (a fixed box reaching into the pier is the scene's choice)
+    const Vec3 rel = bd.position - st.position;
+    const double R = bd.half_extents.norm();
+    double r_pier = 0.0;
+    for (int q = -4; q <= 4; ++q) r_pier = std::max(r_pier, mesh::pier_radius_at(st.pier, rel.z() + 0.25 * q * R));
+    if (std::hypot(rel.x(), rel.y()) < r_pier + R) {
+      keep[k] = 0;
+      ++dropped;
+    }
+  }
+  if (!dropped) return;
+  keep_blocks(out, keep);
   out.warnings.push_back("/blocks: " + std::to_string(dropped) +
                          " blocks start inside or touching the pier and were left out; move the structure "
                          "(structure.position) or narrow keep_x / keep_y");
@@ -207,10 +228,17 @@ BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, do
     out.def.has_structure = true;
     out.def.structure = kinematic_structure(s.structure, *structure);
   }
-  if (!s.blocks.ridge_file_path.empty()) add_ridge_blocks(out, s);
+  if (!s.blocks.ridge_file_path.empty()) {
+    add_ridge_blocks(out, s);
+    if (s.blocks.loose_blocks == "drop") drop_loose_blocks(out);
+  }
   for (const auto& it : s.blocks.list)
     add_block(out, it.half_extents, it.position, it.orientation, it.velocity, it.angular_velocity, it.fixed);
   if (s.has_structure && s.structure.type == "pier") drop_blocks_inside_pier(out, s.structure);
+  if (out.blocks.empty() && out.loose_blocks_dropped)
+    throw InputError("/blocks/loose_blocks", "no block left: the " + std::to_string(out.loose_blocks_dropped) +
+                                                 " ridge blocks kept have no joint and were left out; set \"keep\" "
+                                                 "to keep loose blocks");
   if (out.blocks.empty())
     throw InputError("/blocks/keep_x", "no block left: none inside keep_x / keep_y, or all inside the structure");
   return out;

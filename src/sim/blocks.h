@@ -20,6 +20,7 @@ struct BlockSetup {
   std::vector<bridge::JointInit> joints;         ///< ridge joints between kept blocks
   std::vector<bridge::IceJointInit> ice_joints;  ///< ridge joints from kept blocks to the ice sheet
   std::size_t ridge_blocks_in_file = 0;          ///< before keep_x / keep_y / keep_sail
+  std::size_t loose_blocks_dropped = 0;          ///< kept ridge blocks without a joint, left out (blocks.loose_blocks)
   std::optional<RidgeKeel> ridge;                ///< the ridge file's keel (ISO inputs), if there is one
   std::vector<std::string> warnings;
 };

@@ -166,6 +166,7 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
       {"steps", static_cast<double>(r.steps)},
       {"rigid_steps", static_cast<double>(r.rigid_steps)},
       {"converged", static_cast<double>(r.converged)},
+      {"at_rest", r.at_rest() ? 1.0 : 0.0},
       {"max_block_speed", r.max_block_speed},
       {"max_particle_speed", r.max_particle_speed},
       {"block_kinetic_energy", r.block_kinetic_energy},
@@ -177,14 +178,23 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
       {"speed", r.def.speed},
       {"hold", r.def.hold},
       {"damping", r.def.damping},
+      {"jointed_time", r.jointed_time},
+      {"jointed_converged", static_cast<double>(r.jointed_converged)},
+      {"jointed_joints", static_cast<double>(r.jointed_joints)},
+      {"joints_overloaded", static_cast<double>(r.joints_overloaded)},
+      {"unjointed_max_block_speed", r.unjointed_max_block_speed},
   };
   for (const auto& [name, value] : figures) f.set_attribute(g, name, value);
   f.set_attribute(g, "description",
                   std::string("relaxation before the freeze joints and block-particle freeze bonds were made: "
                               "simulated time (s) and steps, converged (1: every block and particle slower than "
-                              "speed for hold s), speeds at its end (m/s), block kinetic energy (J), the sheet's "
+                              "speed for hold s in the first stage), at_rest (1: so at the freeze, after the "
+                              "jointed stage when there was one), speeds at its end (m/s), block kinetic energy (J), the sheet's "
                               "vertical displacement at its end (m: mean, largest |dz|, largest |mean| during it), "
-                              "lattice bonds broken in it; the run's t = 0 is its end"));
+                              "lattice bonds broken in it; the jointed stage (blocks.relax.jointed_time): its time (s, "
+                              "in time), converged (1: at rest), the joints it held unbreakable and those loaded "
+                              "beyond their strength at its end, the fastest block when it began (m/s); the run's "
+                              "t = 0 is its end"));
 }
 
 /// /analysis/iso: the results, every input (flat value attributes as before, and per input a

@@ -74,15 +74,27 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
       }
     } else {
       const auto& r = s.blocks.relax;
-      const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping}, opt.relax_progress);
+      const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping, r.jointed_time}, opt.relax_progress);
       if (rep.stopped) throw RelaxationStopped(rep.time);
-      if (!rep.converged) {
+      // Not at rest at the freeze: neither stage ended at rest (a first stage that ends at
+      // max_time is what the jointed stage is for).
+      const bool jointed = rep.jointed_time > 0.0;
+      if (!rep.at_rest()) {
         std::ostringstream w;
-        w << "/blocks/relax: the blocks and the sheet were not at rest after max_time = " << r.max_time
+        w << "/blocks/relax: the blocks and the sheet were not at rest after "
+          << (jointed ? "the jointed stage's jointed_time = " : "max_time = ") << (jointed ? r.jointed_time : r.max_time)
           << " s of relaxation (fastest block " << rep.max_block_speed << " m/s, fastest particle "
           << rep.max_particle_speed << " m/s; at rest means below speed = " << r.speed << " m/s for hold = " << r.hold
           << " s); the joints and bonds were frozen there and the run starts from that state. Raise "
-             "/blocks/relax/max_time or set /blocks/relax/damping (e.g. 0.5)";
+          << (jointed ? "/blocks/relax/jointed_time" : "/blocks/relax/max_time, set /blocks/relax/jointed_time (e.g. 3)")
+          << " or set /blocks/relax/damping (e.g. 0.5)";
+        sim.blocks_.warnings.push_back(w.str());
+      }
+      if (jointed && rep.joints_overloaded) {
+        std::ostringstream w;
+        w << "/blocks/relax: " << rep.joints_overloaded << " of the " << rep.jointed_joints
+          << " joints held in the jointed stage carry more than their strength at its end and will break at "
+             "the run's first step (the keel's static load on small joints)";
         sim.blocks_.warnings.push_back(w.str());
       }
     }

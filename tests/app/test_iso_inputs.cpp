@@ -227,7 +227,7 @@ TEST(IsoInputs, TheRidgeFilesKeelReachesTheBlockSetup) {
   hs::sim::apply_run_scene(r.def, hs::scene::parse_scene(pier_scene()));  // made with the run's ice
   hs::io::save_ridge((dir / "keel.h5").string(), r);
   json j = pier_scene();
-  j["blocks"] = {{"ridge_file", "keel.h5"}};
+  j["blocks"] = {{"ridge_file", "keel.h5"}, {"loose_blocks", "keep"}};  // the block has no joint
   const hs::scene::Scene s = hs::scene::parse_scene(j, dir.string());
   const hs::sim::BlockSetup setup = hs::sim::block_setup(s, nullptr, 0.0);
   ASSERT_TRUE(setup.ridge.has_value());
@@ -239,6 +239,54 @@ TEST(IsoInputs, TheRidgeFilesKeelReachesTheBlockSetup) {
   EXPECT_NEAR(hs::sim::assemble_iso_inputs(s, m).in.keel_depth, 4.2, 1e-15);
   // Without a ridge file: no keel from it.
   EXPECT_FALSE(hs::sim::block_setup(hs::scene::parse_scene(pier_scene()), nullptr, 0.0).ridge.has_value());
+}
+
+TEST(IsoInputs, RidgeBlocksWithoutAJointAreLeftOut) {
+  // Four keel blocks in a row: 0-1 jointed, 2 frozen to the ice only, 3 frozen to nothing (loose
+  // rubble: docs/bridge.md, "Relaxation"). blocks.loose_blocks "drop" (the default) leaves 3 out
+  // and renumbers nothing else; "keep" keeps all four.
+  hs::rigid::RidgeResult r;
+  r.def.name = "loose";
+  for (int k = 0; k < 4; ++k) {
+    hs::rigid::RidgeBlock blk;
+    blk.half_extents = hs::Vec3(0.5, 0.5, 0.15);
+    blk.position = hs::Vec3(2.0 * k, 0, -3.0);
+    r.blocks.push_back(blk);
+  }
+  r.ice.push_back({hs::Vec3(10, 10, 0.3), hs::Vec3(0, 0, -0.23), 0});
+  hs::rigid::RidgeJoint j01, j2i;
+  j01.a = 0;
+  j01.b = 1;
+  j01.area = 0.3;
+  j2i.a = 2;
+  j2i.b = -1;
+  j2i.area = 0.5;
+  r.joints = {j01, j2i};
+  r.profile.x = {0.0};
+  r.profile.keel_target = r.profile.keel_depth = r.profile.sail_target = r.profile.sail_height = {0.0};
+  const fs::path dir = hs::testing::cli_work_dir("iso_inputs");
+  hs::sim::apply_run_scene(r.def, hs::scene::parse_scene(pier_scene()));
+  hs::io::save_ridge((dir / "loose.h5").string(), r);
+  const auto setup = [&](const char* loose) {
+    json j = pier_scene();
+    j["blocks"] = {{"ridge_file", "loose.h5"}};
+    if (loose) j["blocks"]["loose_blocks"] = loose;
+    return hs::sim::block_setup(hs::scene::parse_scene(j, dir.string()), nullptr, 0.0);
+  };
+  const hs::sim::BlockSetup d = setup(nullptr);
+  ASSERT_EQ(d.blocks.size(), 3u);
+  EXPECT_EQ(d.loose_blocks_dropped, 1u);
+  EXPECT_EQ(d.ridge_blocks_in_file, 4u);
+  for (int k = 0; k < 3; ++k) EXPECT_EQ(d.blocks[k].def.position.x(), 2.0 * k);
+  ASSERT_EQ(d.joints.size(), 1u);
+  EXPECT_EQ(d.joints[0].a, 0u);
+  EXPECT_EQ(d.joints[0].b, 1u);
+  ASSERT_EQ(d.ice_joints.size(), 1u);
+  EXPECT_EQ(d.ice_joints[0].block, 2u);
+  const hs::sim::BlockSetup k = setup("keep");
+  EXPECT_EQ(k.blocks.size(), 4u);
+  EXPECT_EQ(k.loose_blocks_dropped, 0u);
+  EXPECT_THROW(setup("lose"), std::exception);  // not a choice
 }
 
 namespace {
@@ -303,7 +351,7 @@ TEST(IsoInputs, ARidgeRunRecordsItsInputsAndTheReferenceScriptAgrees) {
     "water": {"linear_drag_per_area": 1000},
     "ice": {"thickness": 1.5, "length": 4, "width": 2, "origin": [0, -1]},
     "structure": {"type": "pier", "position": [-8.5, 0, 0], "velocity": [0.5, 0, 0]},
-    "blocks": {"ridge_file": "run_keel.h5", "conversion": "never", "relax": false}
+    "blocks": {"ridge_file": "run_keel.h5", "conversion": "never", "relax": false, "loose_blocks": "keep"}
   })");
   json without_blocks = j;
   without_blocks.erase("blocks");

@@ -211,6 +211,13 @@ TEST(Restart, SerialContinuesBitIdentically) {
   straight_vs_restart("s3", 0.33, 0.45, "", 1, " --set time.snapshot_interval=0.1");  // 0 ... 0.3 s copied
 }
 
+// The relaxation with a jointed stage (blocks.relax.jointed_time; docs/bridge.md): its joints are
+// made at the poses the joint-free stage ended in, so the restart makes them again from the world
+// saved then (the checkpoint's "unjointed" state) before it restores the relaxed one.
+TEST(Restart, SerialContinuesBitIdenticallyAfterAJointedRelaxation) {
+  straight_vs_restart("j1", 0.33, 0.45, "", 1, " --set blocks.relax.jointed_time=0.5");
+}
+
 // 2 ranks (mpirun -np 2): each rank saves and restores its own particles, ghosts and exchange lists.
 TEST(Restart, TwoRanksContinueBitIdentically) {
   straight_vs_restart("m1", 0.33, 0.45, kMpirun, 2, " --set time.snapshot_interval=0.1");

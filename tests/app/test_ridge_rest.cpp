@@ -185,6 +185,23 @@ TEST(RidgeRest, AllAtStartStaysAtRest) {
   }
 }
 
+TEST(RidgeRest, AJointedStageAfterAShortRelaxationStaysAtRest) {
+  // The relaxation cut at 2 s (not at rest: fastest block 5.7e-3 m/s, particle 1.8e-2 m/s), then
+  // the jointed stage (blocks.relax.jointed_time; docs/bridge.md, "Relaxation" 3b): the 39 joints
+  // between blocks held, at rest after 4.36 s of it with none loaded beyond its strength. Then the
+  // run stays at rest as the fully relaxed one does. Control: the same cut without the stage
+  // breaks a joint in the run (measured 1; the limits of expect_at_rest fail).
+  const std::string cut = " --set blocks.relax.max_time=2";
+  const Rest r = run_mode("hybrid", cut + " --set blocks.relax.jointed_time=6");
+  expect_at_rest(r, "hybrid, jointed stage");
+  const fs::path a = work_dir() / "rest_hybrid_off.h5";
+  EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "converged"), 0.0);
+  EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "at_rest"), 1.0);
+  EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "joints_overloaded"), 0.0);
+  const Rest c = run_mode("never", cut);
+  EXPECT_GE(c.joints_broken + c.freeze_bonds_broken, 1.0);
+}
+
 TEST(RidgeRest, ControlWithoutRelaxationIsNotAtRest) {
   // The same scene in hybrid mode with blocks.relax = false. Measured with the ridge generated
   // under floating plates (docs/ridge.md): 27 of 56 freeze joints and 14 block-particle bonds

@@ -206,5 +206,82 @@ TEST(Relax, ControlJointsAndBondsFrozenBeforeTheReleaseAreStrained) {
   EXPECT_GT(f.max_joint_angle, 1e-5);
 }
 
+// ---- the jointed stage stops a block that friction cannot hold, and its joint then holds ----
+
+/// A 1 x 1 x 0.5 m block on a fixed 30 deg incline (friction 0.3: it slides at g (sin 30 - 0.3
+/// cos 30) = 2.36 m/s^2), jointed to it on their common face (1 m^2, 50 kPa: holds 50 kN; the
+/// block's weight along the slope is 2.3 kN). 0.5 s of relaxation without joints (the block
+/// slides, ~1.2 m/s at its end), then `jointed_time` s with the joint held; then 1 s of run.
+struct Creeper {
+  bridge::RelaxReport report;
+  double speed_after = 0.0;     ///< m/s, the block 1 s after the freeze
+  std::size_t joints_broken = 0;
+  std::size_t joints = 0;       ///< intact at the end
+};
+
+Creeper creep_on_incline(double jointed_time) {
+  bonded::EngineDef ed = ice_def(0.3);
+  ed.gravity = Vec3::Zero();
+  bonded::Engine e(ed);
+  e.set_dt(ice_dt());
+  add_spectator(e);
+  bridge::HybridDef d = dry_hybrid(bridge::ConversionMode::Never);
+  d.defer_freeze = true;
+  const double th = 30.0 * kPi / 180.0;
+  const Quat q(Eigen::AngleAxisd(th, Vec3::UnitY()));
+  const Vec3 n = q * Vec3::UnitZ();  // the incline's top normal
+  std::vector<bridge::BlockInit> blocks(2);
+  blocks[0].def.half_extents = Vec3(6.0, 2.0, 0.5);
+  blocks[0].def.orientation = q;
+  blocks[0].def.fixed = true;
+  blocks[1].def.half_extents = Vec3(0.5, 0.5, 0.25);
+  blocks[1].def.orientation = q;
+  blocks[1].def.position = (0.5 + 0.25) * n;
+  blocks[1].def.density = kRhoI;
+  const std::vector<bridge::JointInit> joints{{0, 1, 0.5 * n, n, 1.0}};
+  bridge::HybridSystem h(e, d, blocks, joints);
+  bridge::RelaxDef rd;
+  rd.max_time = 0.5;
+  rd.speed = 2e-3;
+  rd.hold = 0.2;
+  rd.jointed_time = jointed_time;
+  Creeper c;
+  c.report = h.relax(rd);
+  const double t_end = 1.0;
+  while (e.time() < t_end) h.step();
+  const rigid::RigidWorld& w = *h.world();
+  const rigid::BlockId b = w.blocks()[1];
+  c.speed_after = w.velocity(b).norm();
+  c.joints_broken = w.broken_joint_count();
+  c.joints = w.joint_count();
+  return c;
+}
+
+TEST(Relax, JointedStageStopsACreeperAndItsJointHolds) {
+  const Creeper c = creep_on_incline(2.0);
+  // The first stage cannot end at rest: measured 1.179 m/s when it ended (2.36 m/s^2 x 0.5 s).
+  EXPECT_EQ(c.report.converged, 0u);
+  EXPECT_GT(c.report.unjointed_max_block_speed, 0.5);
+  // Held, the block stops at once and the stage ends at rest after hold (measured 0.223 s).
+  EXPECT_EQ(c.report.jointed_converged, 1u);
+  EXPECT_EQ(c.report.jointed_joints, 1u);
+  EXPECT_EQ(c.report.joints_overloaded, 0u);  // 2.3 kN static against 50 kN
+  EXPECT_LT(c.report.jointed_time, 1.0);
+  // After the freeze the joint is breakable and carries the static load: intact, the block still.
+  EXPECT_EQ(c.joints_broken, 0u);
+  EXPECT_EQ(c.joints, 1u);
+  EXPECT_LT(c.speed_after, 1e-10);  // measured 8.0e-14 m/s (round-off)
+}
+
+TEST(Relax, ControlWithoutTheJointedStageTheCreepersJointBreaks) {
+  // Frozen while the block slides at 1.2 m/s, the joint made at that instant must stop it within
+  // a rigid step: ~m v / dt = 460 kg x 1.2 m/s x 240 /s = 130 kN against its 50 kN. It breaks and
+  // the block slides on (measured 3.31 m/s after 1 s).
+  const Creeper c = creep_on_incline(0.0);
+  EXPECT_EQ(c.report.jointed_time, 0.0);
+  EXPECT_EQ(c.joints_broken, 1u);
+  EXPECT_GT(c.speed_after, 0.5);
+}
+
 }  // namespace
 }  // namespace hs::test::hybrid
