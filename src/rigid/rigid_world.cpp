@@ -917,7 +917,6 @@ JointLoad RigidWorld::joint_load(JointId id) const { return impl_->joint(id).loa
 std::size_t RigidWorld::broken_joint_count() const { return impl_->broken_joints; }
 std::size_t RigidWorld::joint_count() const { return impl_->intact_joints; }
 void RigidWorld::set_joints_breakable(bool on) { impl_->joints_breakable = on; }
-bool RigidWorld::joints_breakable() const { return impl_->joints_breakable; }
 std::size_t RigidWorld::overloaded_joint_count() const {
   const Impl& m = *impl_;
   std::size_t n = 0;

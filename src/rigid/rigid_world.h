@@ -296,7 +296,6 @@ class RigidWorld {
   /// false: joints hold whatever their load (it is still measured); the relaxation's jointed
   /// stage (bridge::RelaxDef::jointed_time). Not saved in checkpoints (true after a freeze).
   void set_joints_breakable(bool on);
-  bool joints_breakable() const;
   /// Intact joints whose last load exceeds their strength (they break at the next check when
   /// breakable).
   std::size_t overloaded_joint_count() const;
