@@ -68,8 +68,8 @@ struct PollResult {
 /// rank is left waiting in a collective.
 class LoopPoll {
  public:
-  LoopPoll(const par::Comm& comm, double flush_interval)
-      : comm_(comm), every_(comm.parallel() ? kMpiPollSteps : 1), interval_(flush_interval),
+  LoopPoll(const par::Comm& comm, const StopSignals& signals, double flush_interval)
+      : comm_(comm), signals_(signals), every_(comm.parallel() ? kMpiPollSteps : 1), interval_(flush_interval),
         last_flush_(Clock::now()) {}
   PollResult after_step(std::uint64_t k, std::uint64_t total) {
     if (k % every_ != 0 && k != total) return {};
@@ -86,7 +86,7 @@ class LoopPoll {
 
  private:
   const par::Comm& comm_;
-  StopSignals signals_;  // installed for the loop only: before it there is nothing to save
+  const StopSignals& signals_;
   std::uint64_t every_;
   double interval_;
   Clock::time_point last_flush_;
@@ -283,6 +283,11 @@ int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const si
 
 int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const par::Comm& comm = opt.comm ? *opt.comm : par::serial();
+  // SIGINT/SIGTERM are recorded, never fatal, from here to the return: the relaxation polls them
+  // (stop, nothing written), the loop polls them (finish the step, checkpoint, close); one that
+  // arrives between the two stops the loop after its first step, and one after the last step lets
+  // the report finish, so no signal can kill the process while the run file is open.
+  StopSignals signals;
   // 1. load: the scene file, --set overrides applied, validated
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   print_warnings(s.warnings, progress);
@@ -305,7 +310,6 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     // The relaxation before the freeze may take minutes: a progress line every few seconds, and
     // SIGINT/SIGTERM stop it (nothing is written yet: exit 128 + signal). Every rank relaxes
     // alike, so under MPI they agree on a stop every 16 rigid steps.
-    StopSignals signals;
     auto last_line = Clock::now();
     std::uint64_t calls = 0;
     build.relax_progress = [&](const bridge::RelaxProgress& p) {
@@ -354,7 +358,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   std::uint64_t last = 0;  // the last step completed
   const std::uint64_t ckpt_every = sim.schedule().checkpoint_every;
   try {
-    LoopPoll poll(comm, opt.flush_interval);
+    LoopPoll poll(comm, signals, opt.flush_interval);
     if (restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
       last = apply_restart(*restart, sim, rec, file, progress);
       std::fprintf(progress, "hybridsim: restarted from %s at step %llu (t = %s s)\n",
@@ -403,6 +407,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   comm.barrier();  // every rank's close has completed before rank 0 reopens the file
   if (comm.rank() == 0) sim::write_analysis(out_path, an);
   print_summary(out, s, sim, fig, an, RunEnd{start, wall, out_path}, comm);
+  if (signals.received())
+    std::fprintf(progress, "hybridsim: %s received after the last step: the run was complete and its report is written\n",
+                 signal_name(signals.received()));
   return 0;
 }
 

@@ -227,7 +227,9 @@ TEST(Restart, TwoRanksContinueBitIdentically) {
 // checkpoint; the printed command finishes the run with the same /series as an uninterrupted run.
 TEST(Restart, SigtermLeavesACheckpointThatRestartFinishes) {
   make_scene();
-  const std::string longer = " --set time.duration=4";  // ~3 s of wall time on one core
+  // 12 s: the loop takes 2.5 s of wall on one idle core (0.83 s for 4 s, after 2.1 s of set-up),
+  // so the SIGTERM 0.8 s into it lands mid-run; with 4 s it could land after the last step.
+  const std::string longer = " --set time.duration=12";
   const auto n = hybridsim("run ridge_run.json -o t_n.h5" + longer);
   ASSERT_EQ(n.rc, 0) << n.err;
   fs::remove(work_dir() / "t.h5");
@@ -248,7 +250,7 @@ TEST(Restart, SigtermLeavesACheckpointThatRestartFinishes) {
   const std::string err = slurp(work_dir() / "t.err");
   ASSERT_TRUE(WIFEXITED(status)) << err;
   ASSERT_EQ(WEXITSTATUS(status), 143) << err;
-  const std::string resume = "hybridsim run ridge_run.json --set time.duration=4 --restart t.h5";
+  const std::string resume = "hybridsim run ridge_run.json --set time.duration=12 --restart t.h5";
   ASSERT_NE(err.find("to continue the run: " + resume), std::string::npos) << err;
   const std::uint64_t k = checkpoint_step(work_dir() / "t.ckpt.h5");
   ASSERT_GT(k, 0u) << err;
