@@ -701,9 +701,16 @@ void Engine::bond_forces() {
   bond_kernel(bond_batch_, def_.bond, 2, {ps_.x.data(), ps_.q.data(), ps_.v.data(), ps_.omega.data(), ps_.f.data(), ps_.torque.data()},
               broken_bonds_);
   const std::size_t n_broken = broken_bonds_.size();
+  std::erase_if(squeezed_breaks_, [&](const SqueezedBreak& q) { return q.step + 1 < step_; });
   for (const BrokenBond& bb : broken_bonds_) {
     // Broken: its force is removed from this step on. Mark via an impossible kind.
-    bonds_[bb.index].kind = static_cast<BondKind>(0xff);
+    Bond& b = bonds_[bb.index];
+    const double rs = ps_.radius[b.i] + ps_.radius[b.j];
+    const double ratio = (rs - (ps_.x[b.j] - ps_.x[b.i]).norm()) / std::min(ps_.radius[b.i], ps_.radius[b.j]);
+    if (ratio > 0.5 * def_.limits.max_overlap_ratio)
+      squeezed_breaks_.push_back({ps_.gid[b.i], ps_.gid[b.j], ratio,
+                                  ratio * std::min(ps_.radius[b.i], ps_.radius[b.j]) / rs, step_, bb.tension});
+    b.kind = static_cast<BondKind>(0xff);
     ++broken_now_[bb.tension ? 0 : 1];
   }
   if (n_broken == 0) return;
@@ -799,6 +806,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
   std::ostringstream s;
   s.precision(6);
   bool bad = false;
+  const SqueezedBreak* crushed = nullptr;  // the worst pair was a bond broken deep in compression
   if (!(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed)) {
     bad = true;
     s << "particle " << ps_.gid[worst] << " at (" << ps_.x[worst].transpose() << ") m moves at "
@@ -812,8 +820,10 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
     if (worst_overlap_source_ >= 0 && worst_overlap_i_ < ps_.size())
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and "
         << sources_[static_cast<std::size_t>(worst_overlap_source_)]->name();
-    else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size())
+    else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size()) {
       s << " between particles " << ps_.gid[worst_overlap_i_] << " and " << ps_.gid[worst_overlap_j_];
+      crushed = squeezed_break(ps_.gid[worst_overlap_i_], ps_.gid[worst_overlap_j_]);
+    }
     else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ == ParticleStore::kNone)
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and a mesh structure";
     else if (worst_overlap_i_ < ps_.size())
@@ -823,11 +833,29 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
   if (!bad) return;
   std::ostringstream m;
   m.precision(6);
-  m << "simulation became unstable at step " << step_ << " (t = " << time_ << " s): " << s.str()
-    << ". Time step dt = " << dt_ << " s, critical dt = " << crit
+  m << "simulation became unstable at step " << step_ << " (t = " << time_ << " s): " << s.str();
+  if (crushed) {
+    // Not a time-step problem: a bond carried the pair that deep and its contact took over there.
+    m.precision(3);
+    m << ". They were bonded until step " << crushed->step << ", when the bond broke in "
+      << (crushed->tension ? "tension" : "shear") << " squeezed to an overlap of " << crushed->overlap_ratio
+      << " of the radius (compressive strain " << 100.0 * crushed->strain
+      << " %), so the contact that replaced it started that deep. The ice there is crushed beyond what the "
+         "lattice represents (bonds have no compressive strength); a smaller time step does not help. Stiffer "
+         "ice (material.youngs_modulus; the step shrinks with it) keeps the strains small; docs/engine.md, "
+         "\"Crushed bonds\". Output written so far is kept; this step was not written.";
+    throw SimulationError(m.str());
+  }
+  m << ". Time step dt = " << dt_ << " s, critical dt = " << crit
     << " s. Reduce the time step (time.dt_alpha or time.dt), or check stiffness, damping and "
        "initial overlaps. Output written so far is kept; this step was not written.";
   throw SimulationError(m.str());
+}
+
+const Engine::SqueezedBreak* Engine::squeezed_break(GlobalId a, GlobalId b) const {
+  for (const auto& q : squeezed_breaks_)
+    if ((q.gi == a && q.gj == b) || (q.gi == b && q.gj == a)) return &q;
+  return nullptr;
 }
 
 void Engine::step() {

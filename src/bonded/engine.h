@@ -478,6 +478,18 @@ class Engine {
   std::vector<Bond> bonds_;
   BondBatch bond_batch_;                 ///< SoA copy of bonds_ for the kernel (bond_kernel.h)
   std::vector<BrokenBond> broken_bonds_; ///< scratch of bond_forces
+  /// Bonds broken in the last two steps while squeezed to an overlap beyond half the
+  /// stability.max_overlap_ratio: the contact that replaces each starts that deep, so a blow-up
+  /// report on its pair names the bond (check_blowup). Usually empty.
+  struct SqueezedBreak {
+    GlobalId gi, gj;
+    double overlap_ratio;  ///< (r_i + r_j - |x_j - x_i|) / min(r_i, r_j) when it broke
+    double strain;         ///< (r_i + r_j - |x_j - x_i|) / (r_i + r_j)
+    std::uint64_t step;
+    bool tension;          ///< which strength it exceeded (else shear)
+  };
+  std::vector<SqueezedBreak> squeezed_breaks_;
+  const SqueezedBreak* squeezed_break(GlobalId a, GlobalId b) const;
   std::vector<ContactPair> pairs_;
   std::vector<double> pair_smeff_;  ///< per pair: sqrt(m_eff) (contact_kernel.cpp; cleared at rebuilds)
   std::vector<PlaneWall> walls_;

@@ -467,3 +467,44 @@ TEST(Engine, RemovedBondsLeaveTheirPairToContact) {
   EXPECT_GT(v1[1].x(), 1e3 * v1[0].norm() + 1e-9);
   EXPECT_LT((v0[1] + v1[1]).norm(), 1e-9 * v1[1].norm());
 }
+
+TEST(Engine, BlowUpAfterABondBrokeSqueezedNamesTheCrushedBond) {
+  // Two spheres bonded where they overlap by 0.7 of the radius (stress free there), sliding past
+  // each other at 1 m/s: the bond breaks in shear in the first step (tau_c = 1 Pa) and the contact
+  // that replaces it starts 0.7 r deep, past stability.max_overlap_ratio = 0.5. The report names
+  // the bond and the crushing, not the time step. Control: the same pair never bonded gets the
+  // time-step advice and no word of a bond.
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  const double r = 0.5 * ice.D;
+  d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), r, 1e9, 1.0, 0.0, 1, 1);
+  for (const bool bonded : {true, false}) {
+    SCOPED_TRACE(bonded ? "bonded" : "never bonded");
+    Engine e(d);
+    auto a = test::sphere_at(ice, Vec3(0, 0, 0));
+    auto b = test::sphere_at(ice, Vec3(2 * r - 0.7 * r, 0, 0));
+    b.v = Vec3(0, 1.0, 0);
+    e.add_particle(a);
+    e.add_particle(b);
+    if (bonded) e.add_bond(0, 1, BondKind::Lattice);
+    std::string msg;
+    try {
+      e.run(5);
+    } catch (const SimulationError& err) {
+      msg = err.what();
+    }
+    ASSERT_NE(msg.find(bonded ? "contact overlap reached 0.7 " : "contact overlap reached 0.69"), std::string::npos) << msg;  // 0.6965; bonded: 0.7
+    std::printf("%s: %s\n", bonded ? "bonded" : "never bonded", msg.c_str());
+    if (bonded) {
+      EXPECT_EQ(e.stats().bonds_broken, 1u);
+      EXPECT_NE(msg.find("They were bonded until step 1, when the bond broke in shear squeezed to an overlap of 0.7"),
+                std::string::npos) << msg;
+      EXPECT_NE(msg.find("compressive strain 35 %"), std::string::npos) << msg;
+      EXPECT_NE(msg.find("a smaller time step does not help"), std::string::npos) << msg;
+      EXPECT_EQ(msg.find("Reduce the time step"), std::string::npos) << msg;
+    } else {
+      EXPECT_EQ(msg.find("bonded"), std::string::npos) << msg;
+      EXPECT_NE(msg.find("Reduce the time step"), std::string::npos) << msg;
+    }
+  }
+}
