@@ -4,6 +4,7 @@
 #include "parallel/comm.h"
 
 #include <algorithm>
+#include <cmath>
 #include <vector>
 
 namespace hs::app {
@@ -162,7 +163,11 @@ void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulati
       << sci(static_cast<double>(end.start.particles) * e.step_count() / wall, 3) << " particle-steps/s)\n";
   out << "  particles " << end.start.particles << " at the start, " << e.global_particle_count()
       << " at the end; bonds " << end.start.bonds << ", broken " << st.bonds_broken << " ("
-      << st.bonds_broken_tension << " tension, " << st.bonds_broken_shear << " shear)\n";
+      << st.bonds_broken_tension << " tension, " << st.bonds_broken_shear << " shear"
+      << (st.bonds_broken_compression || std::isfinite(s.bonds.compressive_strength_ratio)
+              ? ", " + std::to_string(st.bonds_broken_compression) + " compression"
+              : std::string())
+      << ")\n";
   for (std::size_t w = 0; w < s.walls.size(); ++w)
     out << "  peak force on wall '" << s.walls[w].name << "': " << sci(f.wall_peak[w], 4) << " N at t = "
         << sci(f.wall_peak_time[w], 4) << " s\n";

@@ -145,7 +145,7 @@ VParams mixed_params(const ParallelBondParams* params, const std::uint8_t* kind)
 /// One batch's results.
 struct Out {
   V3 fj, ti, tj;
-  vd sigma, tau;
+  vd sigma, tau, crush;
   vm exact;  ///< lane needs the scalar law (rotation beyond the series' range)
 };
 
@@ -224,7 +224,9 @@ inline Out batch(const BondBatch& bb, std::size_t k0, const VParams& p, const Bo
     o.tj = o.tj + cross(mid_j, fd) + md;
   }
 
-  o.sigma = p.sps * un + p.spb * vsqrt(dot(ths, ths));
+  const vd bend = p.spb * vsqrt(dot(ths, ths));
+  o.sigma = p.sps * un + bend;
+  o.crush = bend - p.sps * un;
   o.tau = p.tps * vsqrt(dot(us, us)) + p.tpt * vabs(thn);
   return o;
 }
@@ -251,23 +253,24 @@ void bond_kernel(const BondBatch& bb, const ParallelBondParams* params, std::siz
       const std::uint32_t i = bb.i[k], j = bb.j[k];
       const ParallelBondParams& pk = params[bb.kind[k]];
       Vec3 fj, ti, tj;
-      double sigma, tau;
+      double sigma, tau, crush;
       if (o.exact[l]) {  // a large rotation: the scalar law with its exact log map
         const BondRef ref{Vec3(bb.rix[k], bb.riy[k], bb.riz[k]), Vec3(bb.rjx[k], bb.rjy[k], bb.rjz[k]),
                           Quat(bb.cw[k], bb.cx[k], bb.cy[k], bb.cz[k])};
         const BondKinematics kin{io.x[i], io.x[j], io.q[i], io.q[j], io.v[i], io.v[j], io.omega[i], io.omega[j]};
         const BondResult r = parallel_bond(pk, ref, kin);
-        fj = r.fj; ti = r.ti; tj = r.tj; sigma = r.sigma; tau = r.tau;
+        fj = r.fj; ti = r.ti; tj = r.tj; sigma = r.sigma; tau = r.tau; crush = r.crush;
       } else {
         fj = Vec3(o.fj.x[l], o.fj.y[l], o.fj.z[l]);
         ti = Vec3(o.ti.x[l], o.ti.y[l], o.ti.z[l]);
         tj = Vec3(o.tj.x[l], o.tj.y[l], o.tj.z[l]);
         sigma = o.sigma[l];
         tau = o.tau[l];
+        crush = o.crush[l];
       }
-      const bool tension = sigma > pk.sigma_c;
-      if (tension || tau > pk.tau_c) {
-        broken.push_back({static_cast<std::uint32_t>(k), tension});
+      const BondFailure mode = bond_failure(pk, sigma, tau, crush);
+      if (mode != BondFailure::None) {
+        broken.push_back({static_cast<std::uint32_t>(k), mode});
         continue;
       }
       f[j] += fj;

@@ -68,10 +68,10 @@ struct BondKernelIo {
   Vec3* torque;
 };
 
-/// A bond that failed this evaluation: its index in the batch (= in bonds_) and whether in tension.
+/// A bond that failed this evaluation: its index in the batch (= in bonds_) and how (bond_failure).
 struct BrokenBond {
   std::uint32_t index;
-  bool tension;  ///< sigma > sigma_c (else tau > tau_c)
+  BondFailure mode;
 };
 
 /// Evaluates every bond of `bb`: intact bonds add their force and moment to io.f / io.torque (in

@@ -27,12 +27,15 @@
 // Stresses (P&C Eq. 8; bond radius R, area A = pi R^2, I = pi R^4/4, J = pi R^4/2):
 //   sigma = k_n u_n / A + k_b |theta_s| R / I     (tension positive)
 //   tau   = k_s |u_s| / A + k_t |theta_n| R / J
-// The bond breaks when sigma > sigma_c or tau > tau_c; its force is then removed.
+//   crush = -k_n u_n / A + k_b |theta_s| R / I    (largest compressive stress, compression positive)
+// The bond breaks when sigma > sigma_c or tau > tau_c, or crush > sigma_cc (a compressive
+// strength: none by default, as in P&C); its force is then removed.
 #pragma once
 
 #include "common/types.h"
 
 #include <cmath>
+#include <cstdint>
 
 namespace hs::bonded {
 
@@ -44,6 +47,7 @@ struct ParallelBondParams {
   double radius = 0;            ///< bond radius R, m
   double sigma_c = INFINITY;    ///< tensile strength, Pa
   double tau_c = INFINITY;      ///< shear strength, Pa
+  double sigma_cc = INFINITY;   ///< compressive strength, Pa (none: P&C bonds never fail in compression)
   // Stress per unit deformation, derived by finalize(): k_n/A, k_b R/I, k_s/A, k_t R/J.
   double sigma_per_stretch = 0, sigma_per_bend = 0, tau_per_slide = 0, tau_per_twist = 0;
 
@@ -119,8 +123,19 @@ struct BondResult {
   Vec3 ti, tj;   ///< torques on i and j, N m
   double sigma;  ///< max tensile stress, Pa
   double tau;    ///< max shear stress, Pa
+  double crush;  ///< max compressive stress, Pa (compression positive)
   double energy; ///< elastic energy, J
 };
+
+/// How a bond fails, if it does: tension first, then shear, then compression.
+enum class BondFailure : std::uint8_t { None, Tension, Shear, Compression };
+
+inline BondFailure bond_failure(const ParallelBondParams& p, double sigma, double tau, double crush) {
+  if (sigma > p.sigma_c) return BondFailure::Tension;
+  if (tau > p.tau_c) return BondFailure::Shear;
+  if (crush > p.sigma_cc) return BondFailure::Compression;
+  return BondFailure::None;
+}
 
 /// Below these the series of rotation_vector (t^2 = tan^2(phi/2)) and log_jacobian_c2 (phi^2) hold
 /// to round-off; the bond kernel (bond_kernel.h) evaluates only the series and hands larger
@@ -212,7 +227,9 @@ inline BondResult parallel_bond(const ParallelBondParams& p, const BondRef& ref,
   }
 
   // sigma = k_n u_n / A + k_b |theta_s| R / I,  tau = k_s |u_s| / A + k_t |theta_n| R / J
-  r.sigma = p.sigma_per_stretch * un + p.sigma_per_bend * ths.norm();
+  const double bend = p.sigma_per_bend * ths.norm();
+  r.sigma = p.sigma_per_stretch * un + bend;
+  r.crush = -p.sigma_per_stretch * un + bend;
   r.tau = p.tau_per_slide * us.norm() + p.tau_per_twist * std::abs(thn);
   r.energy = 0.5 * (p.kn * un * un + p.ks * us.squaredNorm() + p.kb * ths.squaredNorm() +
                     p.kt * thn * thn);

@@ -709,9 +709,9 @@ void Engine::bond_forces() {
     const double ratio = (rs - (ps_.x[b.j] - ps_.x[b.i]).norm()) / std::min(ps_.radius[b.i], ps_.radius[b.j]);
     if (ratio > 0.5 * def_.limits.max_overlap_ratio)
       squeezed_breaks_.push_back({ps_.gid[b.i], ps_.gid[b.j], ratio,
-                                  ratio * std::min(ps_.radius[b.i], ps_.radius[b.j]) / rs, step_, bb.tension});
+                                  ratio * std::min(ps_.radius[b.i], ps_.radius[b.j]) / rs, step_, bb.mode});
     b.kind = static_cast<BondKind>(0xff);
-    ++broken_now_[bb.tension ? 0 : 1];
+    ++broken_now_[static_cast<int>(bb.mode) - 1];
   }
   if (n_broken == 0) return;
   std::size_t w = 0;
@@ -746,7 +746,7 @@ void Engine::sync_before_forces() {
 void Engine::evaluate_forces(double history_dt, bool finish) {
   const auto t0 = std::chrono::steady_clock::now();
   history_dt_ = history_dt;
-  broken_now_[0] = broken_now_[1] = 0;
+  broken_now_[0] = broken_now_[1] = broken_now_[2] = 0;
   worst_overlap_ratio_ = 0.0;
   worst_overlap_source_ = -1;
   field_forces();
@@ -775,7 +775,8 @@ bool Engine::finish_forces(bool bad_here) {
   if (parallel()) bad = reduce_loads(bad);
   stats_.bonds_broken_tension += broken_now_[0];
   stats_.bonds_broken_shear += broken_now_[1];
-  stats_.bonds_broken += broken_now_[0] + broken_now_[1];
+  stats_.bonds_broken_compression += broken_now_[2];
+  stats_.bonds_broken += broken_now_[0] + broken_now_[1] + broken_now_[2];
   return bad > 0.0;
 }
 
@@ -838,11 +839,12 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
     // Not a time-step problem: a bond carried the pair that deep and its contact took over there.
     m.precision(3);
     m << ". They were bonded until step " << crushed->step << ", when the bond broke in "
-      << (crushed->tension ? "tension" : "shear") << " squeezed to an overlap of " << crushed->overlap_ratio
+      << (crushed->mode == BondFailure::Tension ? "tension" : crushed->mode == BondFailure::Shear ? "shear" : "compression") << " squeezed to an overlap of " << crushed->overlap_ratio
       << " of the radius (compressive strain " << 100.0 * crushed->strain
       << " %), so the contact that replaced it started that deep. The ice there is crushed beyond what the "
-         "lattice represents (bonds have no compressive strength); a smaller time step does not help. Stiffer "
-         "ice (material.youngs_modulus; the step shrinks with it) keeps the strains small; docs/engine.md, "
+         "lattice represents; a smaller time step does not help. A compressive strength for the bonds "
+         "(bonds.compressive_strength_ratio) breaks them before they are squeezed that far, and stiffer ice "
+         "(material.youngs_modulus; the step shrinks with it) keeps the strains small; docs/engine.md, "
          "\"Crushed bonds\". Output written so far is kept; this step was not written.";
     throw SimulationError(m.str());
   }

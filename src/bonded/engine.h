@@ -226,6 +226,7 @@ struct StepStats {
   std::uint64_t bonds_broken = 0;        ///< since the start
   std::uint64_t bonds_broken_tension = 0;
   std::uint64_t bonds_broken_shear = 0;
+  std::uint64_t bonds_broken_compression = 0;  ///< past ParallelBondParams::sigma_cc
 };
 
 class Engine {
@@ -305,7 +306,7 @@ class Engine {
   void reset_clock() {
     time_ = 0.0;
     step_ = 0;
-    stats_.bonds_broken = stats_.bonds_broken_tension = stats_.bonds_broken_shear = 0;
+    stats_ = StepStats{stats_.neighbor_rebuilds};
   }
 
   // ---- state and diagnostics ----
@@ -486,7 +487,7 @@ class Engine {
     double overlap_ratio;  ///< (r_i + r_j - |x_j - x_i|) / min(r_i, r_j) when it broke
     double strain;         ///< (r_i + r_j - |x_j - x_i|) / (r_i + r_j)
     std::uint64_t step;
-    bool tension;          ///< which strength it exceeded (else shear)
+    BondFailure mode;      ///< which strength it exceeded
   };
   std::vector<SqueezedBreak> squeezed_breaks_;
   const SqueezedBreak* squeezed_break(GlobalId a, GlobalId b) const;
@@ -561,7 +562,7 @@ class Engine {
   /// into carried_history_ (by global ids, oriented from the lower id), for the next build.
   void carry_pair_history(std::size_t below);
   std::vector<par::Bytes> fwd_send_, fwd_recv_, rev_send_, rev_recv_;  ///< ghost update buffers
-  std::uint64_t broken_now_[2] = {0, 0};               ///< tension, shear breaks of this force evaluation
+  std::uint64_t broken_now_[3] = {0, 0, 0};            ///< tension, shear, compression breaks of this force evaluation
   // scratch for neighbour build
   std::vector<std::uint32_t> cell_start_, cell_items_, cell_of_;
   std::vector<std::uint32_t> partner_start_, partner_list_;

@@ -582,8 +582,7 @@ double Engine::reduce_loads(double flag) {
     for (const Vec3& f : m.load.part_moment) v.insert(v.end(), f.data(), f.data() + 3);
     v.push_back(static_cast<double>(m.load.contacts));
   }
-  v.push_back(static_cast<double>(broken_now_[0]));
-  v.push_back(static_cast<double>(broken_now_[1]));
+  for (const std::uint64_t b : broken_now_) v.push_back(static_cast<double>(b));
   v.push_back(flag);
   comm_->sum(v.data(), static_cast<int>(v.size()));
   std::size_t k = 0;
@@ -605,8 +604,7 @@ double Engine::reduce_loads(double flag) {
     }
     m.load.contacts = static_cast<std::size_t>(v[k++]);
   }
-  broken_now_[0] = static_cast<std::uint64_t>(v[k++]);
-  broken_now_[1] = static_cast<std::uint64_t>(v[k++]);
+  for (std::uint64_t& b : broken_now_) b = static_cast<std::uint64_t>(v[k++]);
   pstats_.comm_seconds += seconds_since(t0);
   return v[k];
 }

@@ -71,6 +71,9 @@ struct BondsDef {
   double freeze_tensile_strength = 2e4;    ///< Pa (freeze bonds between blocks)
   double freeze_shear_strength = 2e4;      ///< Pa
   double freeze_strength_fraction = 0.0;   ///< > 0: freeze strengths = this x the lattice bond's
+  /// Lattice bonds also break when their largest compressive stress passes this multiple of their
+  /// tensile strength (ParallelBondParams::sigma_cc); infinite (absent): never in compression.
+  double compressive_strength_ratio = INFINITY;
   bool strength_given = false;             ///< tensile_strength or shear_strength was in the scene
 };
 

@@ -49,6 +49,7 @@ bonded::EngineDef engine_def(const scene::Scene& s) {
   d.bond[static_cast<int>(BondKind::Lattice)] =
       ParallelBondParams::from_stiffness(k, ks, b.radius_ratio * r, ci.bond_tensile_strength, ci.bond_shear_strength,
                                          b.damping_ratio, 0.5 * mass, 0.5 * inertia);
+  d.bond[static_cast<int>(BondKind::Lattice)].sigma_cc = b.compressive_strength_ratio * ci.bond_tensile_strength;
   d.bond[static_cast<int>(BondKind::Freeze)] =
       ParallelBondParams::from_stiffness(k, ks, b.radius_ratio * r, ci.freeze_tensile_strength,
                                          ci.freeze_shear_strength, b.damping_ratio, 0.5 * mass, 0.5 * inertia);
