@@ -9,6 +9,7 @@
 #include "common/state_archive.h"
 
 #include <array>
+#include <cstddef>
 #include <cstring>
 #include <stdexcept>
 #include <unordered_map>
@@ -17,6 +18,18 @@
 namespace hs::bonded {
 
 namespace {
+
+/// The break counters: checkpoints written before the compression count (4 counters, not 5)
+/// load with it zero.
+StepStats load_step_stats(const StateArchive& a, const std::string& key) {
+  const std::string& b = a.bytes(key);
+  constexpr std::size_t kBefore = offsetof(StepStats, bonds_broken_compression);
+  if (b.size() != kBefore) return a.get_value<StepStats>(key);
+  StepStats st;
+  std::memcpy(static_cast<void*>(&st), b.data(), kBefore);
+  return st;
+}
+
 
 struct MeshHistoryRecord {
   GlobalId gid;
@@ -245,7 +258,7 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
     exposure_[i].kind = static_cast<ParticleExposure::Kind>(exposure_kind[i]);
     exposure_[i].area = exposure_area[i];
   }
-  stats_ = a.get_value<StepStats>(p + "stats");
+  stats_ = load_step_stats(a, p + "stats");
   pstats_ = a.get_value<ParallelStats>(p + "parallel_stats");
   max_disp2_ = sc.max_disp2;
   dt_ = sc.dt;
@@ -359,7 +372,7 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   for (std::size_t k = 0; k < walls_.size(); ++k) walls_[k].point = wall_points.at(k);
   a0.get_into(p + "wall_force", wall_force_);
   load_mesh_poses_and_loads(a0, p);
-  stats_ = a0.get_value<StepStats>(p + "stats");
+  stats_ = load_step_stats(a0, p + "stats");
   pstats_ = ParallelStats{};
   dt_ = sc.dt;
   dt_auto_ = sc.dt_auto != 0;
