@@ -185,7 +185,11 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
     out << "ice:              " << ci.model << ": k_n = " << sci(ci.kn, 4) << " N/m, k_s = " << sci(ci.ks, 4)
         << " N/m; lattice E = " << sci(ci.youngs_modulus, 4) << " Pa, nu = " << sci(ci.poisson_ratio, 3)
         << ", flexural strength " << sci(ci.flexural_strength, 4) << " Pa (bonds " << sci(ci.bond_tensile_strength, 4)
-        << " Pa from " << ci.strength_source << ")\n";
+        << " Pa from " << ci.strength_source;
+    if (std::isfinite(s.bonds.compressive_strength_ratio))
+      out << "; in compression " << sci(s.bonds.compressive_strength_ratio * ci.bond_tensile_strength, 4)
+          << " Pa = bonds.compressive_strength_ratio " << s.bonds.compressive_strength_ratio << " x";
+    out << ")\n";
   }
   out << "walls:            " << s.walls.size() << "\n";
   if (sim.has_structure()) {
