@@ -839,13 +839,13 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
     // Not a time-step problem: a bond carried the pair that deep and its contact took over there.
     m.precision(3);
     m << ". They were bonded until step " << crushed->step << ", when the bond broke in "
-      << (crushed->mode == BondFailure::Tension ? "tension" : crushed->mode == BondFailure::Shear ? "shear" : "compression") << " squeezed to an overlap of " << crushed->overlap_ratio
-      << " of the radius (compressive strain " << 100.0 * crushed->strain
-      << " %), so the contact that replaced it started that deep. The ice there is crushed beyond what the "
-         "lattice represents; a smaller time step does not help. A compressive strength for the bonds "
-         "(bonds.compressive_strength_ratio) breaks them before they are squeezed that far, and stiffer ice "
-         "(material.youngs_modulus; the step shrinks with it) keeps the strains small; docs/engine.md, "
-         "\"Crushed bonds\". Output written so far is kept; this step was not written.";
+      << (crushed->mode == BondFailure::Tension ? "tension" : crushed->mode == BondFailure::Shear ? "shear" : "compression")
+      << " with the centres " << crushed->overlap_ratio << " of the radius deep (" << 100.0 * crushed->strain
+      << " % closer than touching), so the contact that replaced it started that deep. Not a time-step problem "
+         "(a smaller step does not help): the ice there is crushed or rolled past what its bonds represent. "
+         "A compressive strength for the bonds (bonds.compressive_strength_ratio) breaks squeezed bonds sooner, "
+         "and stiffer ice (material.youngs_modulus; the step shrinks with it) keeps the strains small; "
+         "docs/engine.md, \"Crushed bonds\". Output written so far is kept; this step was not written.";
     throw SimulationError(m.str());
   }
   m << ". Time step dt = " << dt_ << " s, critical dt = " << crit

@@ -186,13 +186,13 @@ bonded::ForceSourceResult BlockParticleBonds::add_forces(ParticleStore& ps, std:
     const Vec3 vv = B.velocity + B.angular_velocity.cross(xv - B.position);
     const BondKinematics kin{ps.x[i], xv, ps.q[i], B.orientation, ps.v[i], vv, ps.omega[i], B.angular_velocity};
     const BondResult r = bonded::parallel_bond(p, b.ref, kin);
-    const bool tension = r.sigma > p.sigma_c;
-    const bool shear = r.tau > p.tau_c;
-    if (tension || shear) {
+    const bonded::BondFailure mode = bonded::bond_failure(p, r.sigma, r.tau, r.crush);
+    if (mode != bonded::BondFailure::None) {
       b.broken = true;
       --n_intact_;
-      ++stats_.broken;
-      ++(tension ? stats_.broken_tension : stats_.broken_shear);
+      ++stats_.broken;  // compression breaks count here only
+      if (mode == bonded::BondFailure::Tension) ++stats_.broken_tension;
+      if (mode == bonded::BondFailure::Shear) ++stats_.broken_shear;
       continue;
     }
     ps.f[i] -= r.fj;

@@ -67,7 +67,8 @@ struct ReleasedBond {
 };
 
 struct BlockBondStats {
-  std::uint64_t broken = 0, broken_tension = 0, broken_shear = 0;  ///< on this rank, since the start
+  /// On this rank, since the start; broken - broken_tension - broken_shear broke in compression.
+  std::uint64_t broken = 0, broken_tension = 0, broken_shear = 0;
 };
 
 class BlockParticleBonds final : public bonded::ForceSource {

@@ -49,10 +49,13 @@ bonded::EngineDef engine_def(const scene::Scene& s) {
   d.bond[static_cast<int>(BondKind::Lattice)] =
       ParallelBondParams::from_stiffness(k, ks, b.radius_ratio * r, ci.bond_tensile_strength, ci.bond_shear_strength,
                                          b.damping_ratio, 0.5 * mass, 0.5 * inertia);
-  d.bond[static_cast<int>(BondKind::Lattice)].sigma_cc = b.compressive_strength_ratio * ci.bond_tensile_strength;
   d.bond[static_cast<int>(BondKind::Freeze)] =
       ParallelBondParams::from_stiffness(k, ks, b.radius_ratio * r, ci.freeze_tensile_strength,
                                          ci.freeze_shear_strength, b.damping_ratio, 0.5 * mass, 0.5 * inertia);
+  // Crushing is the ice's, not the frozen interface's: freeze bonds get the lattice's compressive
+  // strength (their weakness is in tension and shear).
+  for (const BondKind kind : {BondKind::Lattice, BondKind::Freeze})
+    d.bond[static_cast<int>(kind)].sigma_cc = b.compressive_strength_ratio * ci.bond_tensile_strength;
   d.water.enabled = s.water.enabled;
   d.water.level = s.water.level;
   d.water.density = s.water.density;
