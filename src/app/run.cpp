@@ -287,10 +287,11 @@ int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const si
 
 int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const par::Comm& comm = opt.comm ? *opt.comm : par::serial();
-  // SIGINT/SIGTERM are recorded, never fatal, from here to the return: the relaxation polls them
-  // (stop, nothing written), the loop polls them (finish the step, checkpoint, close); one that
-  // arrives between the two stops the loop after its first step, and one after the last step lets
-  // the report finish, so no signal can kill the process while the run file is open.
+  // The first SIGINT/SIGTERM is recorded, not fatal, from here to the return: the relaxation polls
+  // it (stop, nothing written), the loop polls it (finish the step, checkpoint, close); one that
+  // arrives between the two stops the loop at its first poll (step 1, or 16 under MPI), and one
+  // after the last step lets the report finish, so a single signal never kills the process with
+  // its run file open (a second one does: the handler is one-shot).
   StopSignals signals;
   // 1. load: the scene file, --set overrides applied, validated
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);

@@ -695,13 +695,13 @@ void Engine::pair_forces(const Law& law) {
 }
 
 void Engine::bond_forces() {
+  std::erase_if(squeezed_breaks_, [&](const SqueezedBreak& q) { return q.step + 1 < step_; });
   if (bonds_.empty()) return;
   if (!bond_batch_.valid_for(bonds_.size())) bond_batch_.pack(bonds_);
   broken_bonds_.clear();
   bond_kernel(bond_batch_, def_.bond, 2, {ps_.x.data(), ps_.q.data(), ps_.v.data(), ps_.omega.data(), ps_.f.data(), ps_.torque.data()},
               broken_bonds_);
   const std::size_t n_broken = broken_bonds_.size();
-  std::erase_if(squeezed_breaks_, [&](const SqueezedBreak& q) { return q.step + 1 < step_; });
   for (const BrokenBond& bb : broken_bonds_) {
     // Broken: its force is removed from this step on. Mark via an impossible kind.
     Bond& b = bonds_[bb.index];

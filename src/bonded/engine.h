@@ -307,6 +307,7 @@ class Engine {
     time_ = 0.0;
     step_ = 0;
     stats_ = StepStats{stats_.neighbor_rebuilds};
+    squeezed_breaks_.clear();  // their step numbers were the set-up stage's
   }
 
   // ---- state and diagnostics ----

@@ -50,6 +50,7 @@ EngineDef lab_def(const scene::Scene& s, const Lab& L, double zeta, bool breakab
   d.bond[static_cast<int>(BondKind::Lattice)] = ParallelBondParams::from_stiffness(
       b.kn / softening, b.ks / softening, b.radius, breakable ? b.sigma_c : INFINITY, breakable ? b.tau_c : INFINITY,
       zeta, 0.5 * L.mass, 0.5 * L.inertia);
+  d.bond[static_cast<int>(BondKind::Lattice)].sigma_cc = breakable ? b.sigma_cc : INFINITY;  // as the run's
   return d;
 }
 

@@ -206,8 +206,8 @@ void read_bonds(const JsonObject& root, Scene& s) {
                                       "not both");
   b.compressive_strength_ratio =
       o.number("compressive_strength_ratio", b.compressive_strength_ratio, Range::positive(), "",
-               "compressive strength of a lattice bond as a multiple of its tensile strength, e.g. 3 (leave it "
-               "out for bonds that never fail in compression)");
+               "compressive strength of lattice and freeze bonds as a multiple of the lattice bond's tensile "
+               "strength, e.g. 3 (leave it out for bonds that never fail in compression)");
   b.strength_given = o.has("tensile_strength") || o.has("shear_strength");
   // "calibrated" derives the bond strength from material.flexural_strength: both at once would be
   // two answers to one question.
