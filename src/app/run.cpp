@@ -23,6 +23,7 @@
 #include <chrono>
 #include <csignal>
 #include <cmath>
+#include <functional>
 #include <cstdint>
 #include <filesystem>
 #include <optional>
@@ -283,6 +284,31 @@ int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const si
   return stopped_exit_code(stop);
 }
 
+/// The relaxation's look outside after each rigid step: a progress line every 5 s of wall, and
+/// whether SIGINT/SIGTERM asks it to stop (under MPI agreed every kMpiPollSteps calls).
+std::function<bool(const bridge::RelaxProgress&)> relaxation_poll(const scene::Scene& s, const par::Comm& comm,
+                                                                  const StopSignals& signals, std::FILE* progress) {
+  return [&s, &comm, &signals, progress, last_line = Clock::now(),
+          calls = std::uint64_t{0}](const bridge::RelaxProgress& p) mutable {
+    if (seconds_since(last_line) >= 5.0) {
+      last_line = Clock::now();
+      std::fprintf(progress,
+                   "relax%s t = %.4g s of at most %g s: fastest block %.3g m/s at (%.4g %.4g %.4g), particle %.3g m/s "
+                   "at (%.4g %.4g %.4g), block KE %.3g J, below %g m/s for %.3g s, lattice bonds broken %llu\n",
+                   p.stage == 2 ? " (jointed stage)" : "", p.time,
+                   s.blocks.relax.max_time + (p.stage == 2 ? s.blocks.relax.jointed_time : 0.0), p.max_block_speed,
+                   p.fastest_block.x(), p.fastest_block.y(), p.fastest_block.z(), p.max_particle_speed,
+                   p.fastest_particle.x(), p.fastest_particle.y(), p.fastest_particle.z(), p.block_kinetic_energy,
+                   s.blocks.relax.speed, p.quiet_time, static_cast<unsigned long long>(p.lattice_bonds_broken));
+      std::fflush(progress);
+    }
+    if (comm.parallel() && ++calls % kMpiPollSteps != 0) return false;
+    double v = signals.received();
+    if (comm.parallel()) comm.max(&v, 1);
+    return v > 0.0;
+  };
+}
+
 }  // namespace
 
 int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
@@ -315,26 +341,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     // The relaxation before the freeze may take minutes: a progress line every few seconds, and
     // SIGINT/SIGTERM stop it (nothing is written yet: exit 128 + signal). Every rank relaxes
     // alike, so under MPI they agree on a stop every 16 rigid steps.
-    auto last_line = Clock::now();
-    std::uint64_t calls = 0;
-    build.relax_progress = [&](const bridge::RelaxProgress& p) {
-      if (seconds_since(last_line) >= 5.0) {
-        last_line = Clock::now();
-        std::fprintf(progress,
-                     "relax%s t = %.4g s of at most %g s: fastest block %.3g m/s at (%.4g %.4g %.4g), particle %.3g m/s "
-                     "at (%.4g %.4g %.4g), block KE %.3g J, below %g m/s for %.3g s, lattice bonds broken %llu\n",
-                     p.stage == 2 ? " (jointed stage)" : "", p.time,
-                     s.blocks.relax.max_time + (p.stage == 2 ? s.blocks.relax.jointed_time : 0.0), p.max_block_speed, p.fastest_block.x(), p.fastest_block.y(),
-                     p.fastest_block.z(), p.max_particle_speed, p.fastest_particle.x(), p.fastest_particle.y(),
-                     p.fastest_particle.z(), p.block_kinetic_energy, s.blocks.relax.speed, p.quiet_time,
-                     static_cast<unsigned long long>(p.lattice_bonds_broken));
-        std::fflush(progress);
-      }
-      if (comm.parallel() && ++calls % kMpiPollSteps != 0) return false;
-      double v = signals.received();
-      if (comm.parallel()) comm.max(&v, 1);
-      return v > 0.0;
-    };
+    build.relax_progress = relaxation_poll(s, comm, signals, progress);
     try {
       built.emplace(sim::build_simulation(s, comm, build));
     } catch (const sim::RelaxationStopped& e) {
