@@ -23,74 +23,6 @@
 
 namespace hs::app {
 
-namespace {
-
-/// The ridge definition of a scene: the "ridge" object, or the JSON file a "ridge" string names
-/// (relative to the scene; its errors name the file). Returns the JSON and the directory that
-/// relative paths inside it (keel_profile_csv) are resolved against.
-nlohmann::json ridge_json(const JsonObject& root, const std::string& base, std::string& ridge_base,
-                          std::string& where) {
-  const nlohmann::json& v = root.raw("ridge");
-  ridge_base = base;
-  where = "";
-  if (!v.is_string()) return v;
-  std::filesystem::path p(v.get<std::string>());
-  if (p.is_relative() && !base.empty()) p = std::filesystem::path(base) / p;
-  where = p.string();
-  ridge_base = p.parent_path().string();
-  try {
-    return read_json_file(where, "ridge definition file (named by /ridge)");
-  } catch (const InputError& e) {
-    throw InputError("/ridge", e.what());
-  }
-}
-
-/// A run scene's ridge: its ice from the scene (sim::apply_run_scene). A value the ridge
-/// section sets itself must agree with the scene's: the ridge is generated with the run's ice.
-void take_run_ice(rigid::RidgeDef& def, const nlohmann::json& rj, const scene::Scene& s, const std::string& where) {
-  rigid::RidgeDef from_scene = def;
-  sim::apply_run_scene(from_scene, s);
-  struct Pair {
-    const char* ridge_key;  ///< "a" or "a/b"
-    std::string scene_path;
-    double scene_value;
-  };
-  const bool cl = s.ice.has_consolidated_layer;
-  const std::vector<Pair> pairs = {
-      {"ice_density", sim::scene_sets(s, "/blocks/density") ? "/blocks/density" : "/material/density",
-       from_scene.ice_density},
-      {"water_density", "/water/density", from_scene.water_density},
-      {"settle/friction", sim::scene_sets(s, "/blocks/friction") ? "/blocks/friction" : "/material/friction",
-       from_scene.settle.friction},
-      {"level_ice_thickness", "/ice/thickness", from_scene.level_ice_thickness},
-      {"consolidated_layer_thickness", cl ? "/ice/consolidated_layer/thickness" : "/ice/thickness (no consolidated layer)",
-       from_scene.consolidated_layer_thickness},
-      {"consolidated_layer_width", cl ? "/ice/consolidated_layer/width" : "/ice/consolidated_layer (absent: width 0)",
-       from_scene.consolidated_layer_width},
-  };
-  for (const Pair& p : pairs) {
-    const nlohmann::json::json_pointer ptr(std::string("/") + p.ridge_key);
-    if (!rj.contains(ptr) || rj.at(ptr).is_null()) continue;
-    const nlohmann::json& v = rj.at(ptr);
-    if (!v.is_number()) continue;  // ridge_def_from_json has refused it already
-    const double x = v.get<double>();
-    if (std::abs(x - p.scene_value) <= 1e-12 * std::max(1.0, std::abs(x))) continue;
-    throw InputError(std::string("/ridge/") + p.ridge_key,
-                     (where.empty() ? std::string() : "(in " + where + ") ") + json_fmt(x) + " differs from " +
-                         p.scene_path + " = " + json_fmt(p.scene_value) +
-                         ": a ridge generated from a run scene uses the run's ice; remove /ridge/" + p.ridge_key +
-                         " (the scene's value is taken) or make the two equal");
-  }
-  if (cl && std::abs(s.ice.consolidated_layer.center_x - s.blocks.offset.x()) > 1e-12)
-    throw InputError("/ice/consolidated_layer/center_x",
-                     json_fmt(s.ice.consolidated_layer.center_x) + " m, but the ridge's axis (x = 0 in the ridge "
-                     "file) lands at /blocks/offset/0 = " + json_fmt(s.blocks.offset.x()) +
-                     " m: the keel must sit under the consolidated layer; make them equal");
-  def = from_scene;
-}
-
-}  // namespace
-
 int ridge_command(const std::string& scene_path, const std::string& output, std::ostream& out,
                   bool ignore_memory_limit) {
   const nlohmann::json j = read_json_file(scene_path, "ridge scene file");
@@ -136,21 +68,10 @@ int ridge_command(const std::string& scene_path, const std::string& output, std:
                                      : root.string("name", std::filesystem::path(scene_path).stem().string(), false,
                                                    "the scene name, e.g. \"ridge_keel_8m\"");
   if (!run_scene) root.string("description", "", false, "free text");
-  std::string ridge_base, where;
-  const nlohmann::json rj = ridge_json(root, base, ridge_base, where);
-  rigid::RidgeDef def;
-  try {
-    def = rigid::ridge_def_from_json(rj, "/ridge", ridge_base);
-  } catch (const InputError& e) {
-    if (where.empty()) throw;
-    const std::string what = e.what();
-    const std::string msg = what.size() > e.path().size() + 2 ? what.substr(e.path().size() + 2) : what;
-    throw InputError(e.path(), "(in " + where + ") " + msg);
-  }
-  if (run_scene) {
-    take_run_ice(def, rj, *scene, where);
-    if (def.name.empty()) def.name = name;
-  }
+  std::string ridge_base;
+  rigid::RidgeDef def = run_scene ? sim::run_scene_ridge_def(*scene, &ridge_base)
+                                  : sim::ridge_def_from_section(root.raw("ridge"), base, &ridge_base);
+  if (run_scene && def.name.empty()) def.name = name;
   // Before the generation (minutes): a path that cannot be written fails now, exit 2.
   if (path.empty()) path = name + "_ridge.h5";
   std::filesystem::path keel = def.keel_profile_csv;

@@ -667,6 +667,7 @@ void apply_override(json& scene, const std::string& assignment) {
 Scene parse_scene(const json& j, const std::string& base_dir) {
   Scene s;
   s.json = j;
+  s.base_dir = base_dir;
   const JsonObject root = section(j, "");
   read_top(root, s);
   read_time(root, s);

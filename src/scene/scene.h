@@ -237,6 +237,7 @@ struct Scene {
   BlocksDef blocks;
 
   nlohmann::json json;             ///< the effective scene (after --set overrides)
+  std::string base_dir;            ///< the scene file's directory: relative paths are resolved against it
   std::vector<std::string> warnings;  ///< "path: message", for the user; not errors
 };
 

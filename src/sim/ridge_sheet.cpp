@@ -7,6 +7,7 @@
 #include "sim/build.h"
 
 #include <algorithm>
+#include <filesystem>
 #include <nlohmann/json.hpp>
 #include <cmath>
 #include <utility>
@@ -45,6 +46,81 @@ namespace {
 double block_density(const scene::Scene& s) { return s.blocks.density > 0.0 ? s.blocks.density : s.material.density; }
 double block_friction(const scene::Scene& s) {
   return s.blocks.friction >= 0.0 ? s.blocks.friction : s.material.friction;
+}
+
+/// The "ridge" value's JSON: the object itself, or the file a string names (relative to
+/// `base`). `where`: that file ("" inline); `ridge_base`: the directory relative paths inside
+/// the definition (keel_profile_csv) are resolved against.
+nlohmann::json ridge_section_json(const nlohmann::json& v, const std::string& base, std::string& ridge_base,
+                                  std::string& where) {
+  ridge_base = base;
+  where = "";
+  if (!v.is_string()) return v;
+  std::filesystem::path p(v.get<std::string>());
+  if (p.is_relative() && !base.empty()) p = std::filesystem::path(base) / p;
+  where = p.string();
+  ridge_base = p.parent_path().string();
+  try {
+    return read_json_file(where, "ridge definition file (named by /ridge)");
+  } catch (const InputError& e) {
+    throw InputError("/ridge", e.what());
+  }
+}
+
+/// ridge_def_from_json with the errors of a definition read from a file naming that file.
+rigid::RidgeDef parse_section(const nlohmann::json& rj, const std::string& ridge_base, const std::string& where) {
+  try {
+    return rigid::ridge_def_from_json(rj, "/ridge", ridge_base);
+  } catch (const InputError& e) {
+    if (where.empty()) throw;
+    const std::string what = e.what();
+    const std::string msg = what.size() > e.path().size() + 2 ? what.substr(e.path().size() + 2) : what;
+    throw InputError(e.path(), "(in " + where + ") " + msg);
+  }
+}
+
+/// A run scene's ridge: its ice from the scene (apply_run_scene). A value the ridge
+/// section sets itself must agree with the scene's: the ridge is generated with the run's ice.
+void take_run_ice(rigid::RidgeDef& def, const nlohmann::json& rj, const scene::Scene& s, const std::string& where) {
+  rigid::RidgeDef from_scene = def;
+  apply_run_scene(from_scene, s);
+  struct Pair {
+    const char* ridge_key;  ///< "a" or "a/b"
+    std::string scene_path;
+    double scene_value;
+  };
+  const bool cl = s.ice.has_consolidated_layer;
+  const std::vector<Pair> pairs = {
+      {"ice_density", scene_sets(s, "/blocks/density") ? "/blocks/density" : "/material/density",
+       from_scene.ice_density},
+      {"water_density", "/water/density", from_scene.water_density},
+      {"settle/friction", scene_sets(s, "/blocks/friction") ? "/blocks/friction" : "/material/friction",
+       from_scene.settle.friction},
+      {"level_ice_thickness", "/ice/thickness", from_scene.level_ice_thickness},
+      {"consolidated_layer_thickness", cl ? "/ice/consolidated_layer/thickness" : "/ice/thickness (no consolidated layer)",
+       from_scene.consolidated_layer_thickness},
+      {"consolidated_layer_width", cl ? "/ice/consolidated_layer/width" : "/ice/consolidated_layer (absent: width 0)",
+       from_scene.consolidated_layer_width},
+  };
+  for (const Pair& p : pairs) {
+    const nlohmann::json::json_pointer ptr(std::string("/") + p.ridge_key);
+    if (!rj.contains(ptr) || rj.at(ptr).is_null()) continue;
+    const nlohmann::json& v = rj.at(ptr);
+    if (!v.is_number()) continue;  // ridge_def_from_json has refused it already
+    const double x = v.get<double>();
+    if (std::abs(x - p.scene_value) <= 1e-12 * std::max(1.0, std::abs(x))) continue;
+    throw InputError(std::string("/ridge/") + p.ridge_key,
+                     (where.empty() ? std::string() : "(in " + where + ") ") + json_fmt(x) + " differs from " +
+                         p.scene_path + " = " + json_fmt(p.scene_value) +
+                         ": a ridge generated from a run scene uses the run's ice; remove /ridge/" + p.ridge_key +
+                         " (the scene's value is taken) or make the two equal");
+  }
+  if (cl && std::abs(s.ice.consolidated_layer.center_x - s.blocks.offset.x()) > 1e-12)
+    throw InputError("/ice/consolidated_layer/center_x",
+                     json_fmt(s.ice.consolidated_layer.center_x) + " m, but the ridge's axis (x = 0 in the ridge "
+                     "file) lands at /blocks/offset/0 = " + json_fmt(s.blocks.offset.x()) +
+                     " m: the keel must sit under the consolidated layer; make them equal");
+  def = from_scene;
 }
 
 
@@ -128,10 +204,59 @@ void check_ridge_generation(const rigid::RidgeResult& r, const scene::Scene& s, 
                   " m in the file; consolidated layer " + json_fmt(want.sheet.layer_underside) + " .. " +
                   json_fmt(want.sheet.layer_top) + " m, " + json_fmt(got.sheet.layer_underside) + " .. " +
                   json_fmt(got.sheet.layer_top) + " m");
+  if (!bad.empty()) {
+    std::string msg = path + " was generated with other ice than this scene's: ";
+    for (std::size_t i = 0; i < bad.size(); ++i) msg += (i ? "; " : "") + bad[i];
+    throw InputError("/blocks/ridge_file", msg + ". " + fix);
+  }
+  if (scene_sets(s, "/ridge")) check_ridge_definition(r, s, path);
+}
+
+void check_ridge_definition(const rigid::RidgeResult& r, const scene::Scene& s, const std::string& path) {
+  std::string where;
+  const rigid::RidgeDef want = run_scene_ridge_def(s, nullptr, &where);
+  const nlohmann::json a = rigid::ridge_def_to_json(want).flatten();
+  const nlohmann::json b = rigid::ridge_def_to_json(r.def).flatten();
+  std::vector<std::string> bad;
+  auto value = [](const nlohmann::json& j, const std::string& k) {
+    const auto it = j.find(k);
+    return it == j.end() ? std::string("absent") : it->dump();
+  };
+  for (const auto& [k, v] : a.items())
+    if (k != "/name" && value(b, k) != v.dump()) bad.push_back(k + " is " + v.dump() + " there, " + value(b, k) + " in the file");
+  for (const auto& [k, v] : b.items())
+    if (!a.contains(k)) bad.push_back(k + " is absent there, " + v.dump() + " in the file");
   if (bad.empty()) return;
-  std::string msg = path + " was generated with other ice than this scene's: ";
-  for (std::size_t i = 0; i < bad.size(); ++i) msg += (i ? "; " : "") + bad[i];
-  throw InputError("/blocks/ridge_file", msg + ". " + fix);
+  const std::size_t shown = std::min<std::size_t>(bad.size(), 6);
+  std::string msg = path + " was generated from another ridge definition than the scene's /ridge" +
+                    (where.empty() ? std::string() : " (" + where + ")") + ": ";
+  for (std::size_t i = 0; i < shown; ++i) msg += (i ? "; " : "") + bad[i];
+  if (shown < bad.size()) msg += "; and " + std::to_string(bad.size() - shown) + " more";
+  throw InputError("/blocks/ridge_file",
+                   msg + ". The file is out of date: make it again with `hybridsim ridge <this scene>.json` (it is "
+                         "written to /blocks/ridge_file), or remove /ridge from the scene to run the file as it is");
+}
+
+rigid::RidgeDef ridge_def_from_section(const nlohmann::json& v, const std::string& base_dir, std::string* ridge_base) {
+  std::string rb, where;
+  const nlohmann::json rj = ridge_section_json(v, base_dir, rb, where);
+  rigid::RidgeDef d = parse_section(rj, rb, where);
+  if (ridge_base) *ridge_base = rb;
+  return d;
+}
+
+rigid::RidgeDef run_scene_ridge_def(const scene::Scene& s, std::string* ridge_base, std::string* where) {
+  if (!scene_sets(s, "/ridge"))
+    throw InputError("/ridge", "missing: the ridge definition (an object, or the path of a JSON file holding one; "
+                               "docs/ridge.md)");
+  std::string rb, w;
+  const nlohmann::json rj = ridge_section_json(s.json.at("ridge"), s.base_dir, rb, w);
+  rigid::RidgeDef d = parse_section(rj, rb, w);
+  take_run_ice(d, rj, s, w);
+  if (d.name.empty()) d.name = s.name;
+  if (ridge_base) *ridge_base = rb;
+  if (where) *where = w;
+  return d;
 }
 
 double sheet_lift(const rigid::RidgeResult& r, double x) {

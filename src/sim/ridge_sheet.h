@@ -10,6 +10,7 @@
 #include "scene/scene.h"
 
 #include <cstddef>
+#include <nlohmann/json.hpp>
 #include <string>
 
 namespace hs::sim {
@@ -43,6 +44,24 @@ bool scene_sets(const scene::Scene& s, const char* pointer);
 /// with this scene's ice: every mismatching field named with the scene's and the file's value,
 /// and the fix (`hybridsim ridge <scene>`).
 void check_ridge_generation(const rigid::RidgeResult& r, const scene::Scene& s, const std::string& path);
+
+/// Throws hs::InputError("/blocks/ridge_file", ...) unless the ridge file was generated from the
+/// scene's own "ridge" section as it reads now (run_scene_ridge_def): every differing field of
+/// the definition named with both values (the name aside), and the fix. Called by
+/// check_ridge_generation when the scene has a "ridge" section.
+void check_ridge_definition(const rigid::RidgeResult& r, const scene::Scene& s, const std::string& path);
+
+/// The ridge definition a "ridge" value gives: the object, or the JSON file a string names
+/// (relative to `base_dir`; errors inside it name the file). `ridge_base`: the directory the
+/// definition's own relative paths (keel_profile_csv) are resolved against.
+rigid::RidgeDef ridge_def_from_section(const nlohmann::json& v, const std::string& base_dir,
+                                       std::string* ridge_base = nullptr);
+
+/// A run scene's ridge: its "ridge" section with the scene's ice (apply_run_scene) and, if it
+/// has none, the scene's name. A value the section sets itself must agree with the scene's
+/// (InputError naming both). `where`: the file the section names ("" inline).
+rigid::RidgeDef run_scene_ridge_def(const scene::Scene& s, std::string* ridge_base = nullptr,
+                                    std::string* where = nullptr);
 
 /// The sheet's lift at ridge-frame x: the lift of the plate over x, ramped linearly over
 /// +-min(1 m, a quarter plate) across plate boundaries; 0 for a ridge without floating plates.

@@ -1,7 +1,8 @@
 // Issue 15, ridge generation with the run's ice: the sheet function (sim::sheet_geometry) is where
 // build_engine puts its particles; a ridge file records what it was generated with and a run with
-// other ice refuses it (each field, through the CLI too); `hybridsim ridge <run scene>` takes the
-// scene's ice and refuses a ridge section that contradicts it.
+// other ice refuses it (each field, through the CLI too), and so does a run whose own ridge section
+// has changed since the file was made; `hybridsim ridge <run scene>` takes the scene's ice and
+// refuses a ridge section that contradicts it.
 #include "cli_fixtures.h"
 
 #include "bonded/hcp_lattice.h"
@@ -212,6 +213,24 @@ TEST(RidgeGeneration, CliRunRefusesAMismatchWithExit2AndGenerationTakesTheScenes
   ASSERT_TRUE(fs::exists(work_dir() / "gen_ridge.h5"));
   const CliResult chk = hybridsim("check gen.json");
   EXPECT_EQ(chk.rc, 0) << chk.err;
+  // Once the scene's ridge section changes the file is out of date: a run refuses it (exit 2),
+  // naming every changed field of the definition with both values, until it is made again.
+  json stale = g;
+  stale["ridge"]["joints"] = {{"min_area", 0.05}};
+  stale["ridge"]["seed"] = 4;
+  write("gen_stale.json", stale.dump());
+  const CliResult st = hybridsim("check gen_stale.json");
+  EXPECT_EQ(st.rc, 2) << st.err;
+  EXPECT_TRUE(has(st.err, "/joints/min_area is 0.05 there, 0.01 in the file")) << st.err;
+  EXPECT_TRUE(has(st.err, "/seed is 4 there, 3 in the file")) << st.err;
+  EXPECT_TRUE(has(st.err, "/blocks/ridge_file") && has(st.err, "hybridsim ridge <this scene>.json")) << st.err;
+  // The same definition in a file the scene names: the message names that file.
+  write("gen_stale_def.json", stale["ridge"].dump());
+  stale["ridge"] = "gen_stale_def.json";
+  write("gen_stale_file.json", stale.dump());
+  const CliResult sf = hybridsim("check gen_stale_file.json");
+  EXPECT_EQ(sf.rc, 2) << sf.err;
+  EXPECT_TRUE(has(sf.err, "gen_stale_def.json") && has(sf.err, "/joints/min_area is 0.05 there")) << sf.err;
   // `bench hybrid` on it times steps at once: its scene must not relax the ridge first (with the
   // relaxation on, as a ridge file turns it on by default, 8 steps took over 5 min of relaxing).
   const CliResult bench = hybridsim("bench hybrid --ridge gen_ridge.h5 --steps 8");
