@@ -11,7 +11,10 @@ cd "$(dirname "$0")/.."
 bash scripts/build.sh hybridsim
 mkdir -p out
 RIDGE=scenes/ridge_keel_8m_31m_ridge.h5  # blocks.ridge_file of the scene (and of paper_keel_7_9m)
-[ -f "$RIDGE" ] || ./build/hybridsim ridge scenes/ridge_keel_8m_cone.json
+# Made when missing, and again when the run refuses it as made from another definition or ice.
+if [ ! -f "$RIDGE" ] || ./build/hybridsim check scenes/ridge_keel_8m_cone.json 2>&1 | grep -q "/blocks/ridge_file"; then
+  ./build/hybridsim ridge scenes/ridge_keel_8m_cone.json
+fi
 extra=()
 [ $# -ge 1 ] && extra=(--set "time.duration=$1")
 for mode in hybrid all_at_start; do
