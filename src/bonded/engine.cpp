@@ -430,11 +430,21 @@ void Engine::build_pair_list() {
     std::vector<std::uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
     for (std::size_t i = 0; i < n; ++i) cell_items_[fill[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
   }
-  // Bond partners (CSR), to keep bonded pairs out of the contact list.
+  // Bond partners (CSR), to keep bonded pairs out of the contact list; crushed pairs too
+  // (crushed_forces computes them), where both particles are here.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> crushed_local;
+  for (const auto& [k, c] : crushed_) {
+    const std::uint32_t a = ps_.local(k.a), b = ps_.local(k.b);
+    if (a != ParticleStore::kNone && b != ParticleStore::kNone) crushed_local.emplace_back(a, b);
+  }
   partner_start_.assign(n + 1, 0);
   for (const auto& b : bonds_) {
     ++partner_start_[b.i + 1];
     ++partner_start_[b.j + 1];
+  }
+  for (const auto& [a, b] : crushed_local) {
+    ++partner_start_[a + 1];
+    ++partner_start_[b + 1];
   }
   for (std::size_t i = 0; i < n; ++i) partner_start_[i + 1] += partner_start_[i];
   partner_list_.resize(partner_start_[n]);
@@ -443,6 +453,10 @@ void Engine::build_pair_list() {
     for (const auto& b : bonds_) {
       partner_list_[fill[b.i]++] = b.j;
       partner_list_[fill[b.j]++] = b.i;
+    }
+    for (const auto& [a, b] : crushed_local) {
+      partner_list_[fill[a]++] = b;
+      partner_list_[fill[b]++] = a;
     }
   }
   // Contact history survives the rebuild, keyed by global ids. xi is the tangential
@@ -706,21 +720,29 @@ void Engine::bond_forces() {
     // Broken: its force is removed from this step on. Mark via an impossible kind.
     Bond& b = bonds_[bb.index];
     const double rs = ps_.radius[b.i] + ps_.radius[b.j];
-    const double ratio = (rs - (ps_.x[b.j] - ps_.x[b.i]).norm()) / std::min(ps_.radius[b.i], ps_.radius[b.j]);
-    if (ratio > 0.5 * def_.limits.max_overlap_ratio)
-      squeezed_breaks_.push_back({ps_.gid[b.i], ps_.gid[b.j], ratio,
-                                  ratio * std::min(ps_.radius[b.i], ps_.radius[b.j]) / rs, step_, bb.mode});
-    b.kind = static_cast<BondKind>(0xff);
+    const double rmin = std::min(ps_.radius[b.i], ps_.radius[b.j]);
+    const double ratio = (rs - (ps_.x[b.j] - ps_.x[b.i]).norm()) / rmin;
+    const double half = 0.5 * def_.limits.max_overlap_ratio;
+    std::uint8_t mark = 0xff;  // 0xff: broken, its pair joins the contact list; 0xfe: crushed
+    if (ratio > half) {
+      squeezed_breaks_.push_back({ps_.gid[b.i], ps_.gid[b.j], ratio, ratio * rmin / rs, step_, bb.mode});
+      if (def_.crushed_set) {
+        crushed_[GidPair::of(ps_.gid[b.i], ps_.gid[b.j])] = {(ratio - half) * rmin, Vec3::Zero()};
+        mark = 0xfe;
+      }
+    }
+    b.kind = static_cast<BondKind>(mark);
     ++broken_now_[static_cast<int>(bb.mode) - 1];
   }
   if (n_broken == 0) return;
   std::size_t w = 0;
   for (std::size_t r = 0; r < bonds_.size(); ++r) {
     const Bond& b = bonds_[r];
-    if (static_cast<std::uint8_t>(b.kind) == 0xff) {
+    if (static_cast<std::uint8_t>(b.kind) >= 0xfe) {
       --ps_.bond_count[b.i];
       --ps_.bond_count[b.j];
-      pairs_.push_back({b.i, b.j, Vec3::Zero()});  // now they interact by contact
+      // Now they interact by contact: in the list, or as a crushed pair (crushed_forces).
+      if (static_cast<std::uint8_t>(b.kind) == 0xff) pairs_.push_back({b.i, b.j, Vec3::Zero()});
       continue;
     }
     bonds_[w++] = b;
@@ -761,6 +783,7 @@ void Engine::evaluate_forces(double history_dt, bool finish) {
       pair_forces(PairLaw<L>{law});  // a law without a vectorised kernel
   });
   bond_forces();
+  if (!crushed_.empty()) crushed_forces();  // engine_crushed.cpp
   const double dt_force = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   pstats_.force_seconds += dt_force;
   force_seconds_since_balance_ += dt_force;
@@ -843,7 +866,10 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
       << " with the centres " << crushed->overlap_ratio << " of the radius deep (" << 100.0 * crushed->strain
       << " % closer than touching), so the contact that replaced it started that deep. Not a time-step problem "
          "(a smaller step does not help): the ice there is crushed or rolled past what its bonds represent. "
-         "A compressive strength for the bonds (bonds.compressive_strength_ratio) breaks squeezed bonds sooner, "
+      << (def_.crushed_set ? ""
+                           : "bonds.crushed_contact = \"set\" (the default; this run has \"elastic\") lets the "
+                             "contact take over at half the limit, the rest of the overlap its permanent set. ")
+      << "A compressive strength for the bonds (bonds.compressive_strength_ratio) breaks squeezed bonds sooner, "
          "and stiffer ice (material.youngs_modulus; the step shrinks with it) keeps the strains small; "
          "docs/engine.md, \"Crushed bonds\". Output written so far is kept; this step was not written.";
     throw SimulationError(m.str());
@@ -966,6 +992,7 @@ EnergyReport Engine::energy() const {
                              ? PairLaw<LinearLaw>{LinearLaw::from_def(def_)}.energy(rs - dist, rstar, p.xi)
                              : PairLaw<HertzLaw>{HertzLaw::from_def(def_)}.energy(rs - dist, rstar, p.xi);
   }
+  if (!crushed_.empty()) e.contact_elastic += crushed_energy();
   if (parallel()) {  // every bond and contact pair lives on exactly one rank
     double v[6] = {e.kinetic_translational, e.kinetic_rotational, e.gravity_potential,
                    e.buoyancy_potential, e.bond_elastic, e.contact_elastic};

@@ -27,6 +27,7 @@
 #include <array>
 #include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <unordered_map>
 #include <string>
@@ -62,6 +63,10 @@ struct EngineDef {
   double skin = 0.0;                 ///< Verlet skin, m; 0 = 0.1 * smallest diameter
   bool spatial_sort = true;          ///< reorder particles by cell at neighbour rebuilds
   StabilityLimits limits;
+  /// A bond that breaks with its particles deeper than half limits.max_overlap_ratio (squeezed,
+  /// crushed) leaves its pair a contact with a permanent set: the overlap beyond that half
+  /// (docs/engine.md, "Crushed bonds"). false: the contact starts from the whole overlap.
+  bool crushed_set = true;
 };
 
 /// What a force source sees of the force evaluation it takes part in.
@@ -314,6 +319,10 @@ class Engine {
   ParticleStore& particles() { return ps_; }
   const ParticleStore& particles() const { return ps_; }
   const std::vector<Bond>& bonds() const { return bonds_; }
+  /// Crushed pairs on this rank (EngineDef::crushed_set): their contact acts on the overlap
+  /// beyond `set`; -1 if the pair has no set.
+  std::size_t crushed_pair_count() const { return crushed_.size(); }
+  double crushed_set_of(GlobalId a, GlobalId b) const;
   const std::vector<ContactPair>& contact_pairs() const { return pairs_; }
   const std::vector<PlaneWall>& walls() const { return walls_; }
   std::vector<PlaneWall>& walls() { return walls_; }
@@ -492,6 +501,22 @@ class Engine {
   };
   std::vector<SqueezedBreak> squeezed_breaks_;
   const SqueezedBreak* squeezed_break(GlobalId a, GlobalId b) const;
+  /// Pairs whose bond broke squeezed, with EngineDef::crushed_set: kept out of the contact list
+  /// and computed by crushed_forces() on the overlap beyond `set` until they part (then they
+  /// join the list). Keyed by global ids (a < b), on the rank that owns a (as bonds and contact
+  /// history are), migrating and checkpointed with it (engine_crushed.cpp).
+  struct CrushedContact {
+    double set;  ///< m: the overlap the contact does not push back
+    Vec3 xi;     ///< tangential spring, b's contact point relative to a's
+  };
+  struct GidPairLess {
+    bool operator()(const GidPair& x, const GidPair& y) const { return x.a != y.a ? x.a < y.a : x.b < y.b; }
+  };
+  std::map<GidPair, CrushedContact, GidPairLess> crushed_;  ///< ordered: the same sums run to run
+  void crushed_forces();
+  double crushed_energy() const;
+  /// The checkpoint's crushed pairs (none in one written before them); `clear` first.
+  void load_crushed_pairs(const StateArchive& a, const std::string& p, bool clear);
   std::vector<ContactPair> pairs_;
   std::vector<double> pair_smeff_;  ///< per pair: sqrt(m_eff) (contact_kernel.cpp; cleared at rebuilds)
   std::vector<PlaneWall> walls_;

@@ -6,6 +6,7 @@
 //   * a bond lives on the rank owning its lower global id (gi), and migrates with that particle;
 //   * a contact pair of an owned and a ghost particle is computed by the rank owning the lower
 //     global id; its tangential history migrates with that particle;
+//   * a crushed pair (engine_crushed.cpp) lives and migrates as its bond did;
 //   * plane-wall and mesh-wall contact history migrates with its particle, and so does the
 //     per-particle state of force sources (ForceSource::pack_history).
 // Forces that a rank computes on its ghosts are sent back to their owners after every force
@@ -58,6 +59,11 @@ struct BondWire {
 };
 struct PairHistWire {
   GlobalId a, b;
+  Vec3 xi;
+};
+struct CrushedWire {
+  GlobalId a, b;
+  double set;
   Vec3 xi;
 };
 struct MeshHistWire {
@@ -148,6 +154,10 @@ void Engine::distribute(const par::Comm& comm, const ParallelDef& def) {
   for (const Bond& b : bonds_)
     if (keep[b.i]) mine.push_back(b);
   bonds_.swap(mine);
+  std::erase_if(crushed_, [&](const auto& e) {  // on the rank owning a, as its bond was
+    const std::uint32_t a = ps_.local(e.first.a);
+    return a == ParticleStore::kNone || a >= n || !keep[a];
+  });
   drop_owned(keep);
   for (Bond& b : bonds_) {  // owned end bound now (for the cost estimate), the other after the exchange
     b.i = ps_.local(b.gi);
@@ -276,9 +286,10 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
   const std::size_t n = ps_.owned();
   std::vector<Bytes> out(np);
   std::vector<std::uint32_t> count(np, 0);
-  // Sections per destination: particles (+ wall histories), bonds, pair histories, mesh histories.
-  std::vector<Bytes> bonds_out(np), hist_out(np), mesh_out(np);
-  std::vector<std::uint32_t> nbonds(np, 0), nhist(np, 0), nmesh(np, 0);
+  // Sections per destination: particles (+ wall histories), bonds, pair histories, mesh
+  // histories, crushed pairs.
+  std::vector<Bytes> bonds_out(np), hist_out(np), mesh_out(np), crushed_out(np);
+  std::vector<std::uint32_t> nbonds(np, 0), nhist(np, 0), nmesh(np, 0), ncrushed(np, 0);
   std::unordered_map<GlobalId, int> leaving;
   for (std::size_t i = 0; i < n; ++i) {
     if (dest[i] < 0) continue;
@@ -324,11 +335,21 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
       ++nmesh[l->second];
       it = meshes_[k].history.erase(it);
     }
+  for (auto it = crushed_.begin(); any_leave && it != crushed_.end();) {
+    auto l = leaving.find(it->first.a);
+    if (l == leaving.end()) {
+      ++it;
+      continue;
+    }
+    put(crushed_out[l->second], CrushedWire{it->first.a, it->first.b, it->second.set, it->second.xi});
+    ++ncrushed[l->second];
+    it = crushed_.erase(it);
+  }
   std::vector<std::vector<Bytes>> src_out(sources_.size(), std::vector<Bytes>(np));
   if (any_leave)
     for (std::size_t k = 0; k < sources_.size(); ++k) sources_[k]->pack_history(leaving, src_out[k]);
   // Assemble: [n particles][particles][n bonds][bonds][n hist][hist][n mesh][mesh]
-  //           then per force source: [n bytes][bytes]
+  //           [n crushed][crushed] then per force source: [n bytes][bytes]
   std::vector<Bytes> msg(np);
   for (int r = 0; r < np; ++r) {
     if (r == me) continue;
@@ -341,6 +362,8 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     m.insert(m.end(), hist_out[r].begin(), hist_out[r].end());
     put(m, nmesh[r]);
     m.insert(m.end(), mesh_out[r].begin(), mesh_out[r].end());
+    put(m, ncrushed[r]);
+    m.insert(m.end(), crushed_out[r].begin(), crushed_out[r].end());
     for (const auto& so : src_out) {
       put(m, static_cast<std::uint64_t>(so[r].size()));
       m.insert(m.end(), so[r].begin(), so[r].end());
@@ -393,6 +416,11 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     for (std::uint32_t q = 0; q < nm; ++q) {
       const auto w = rd.get<MeshHistWire>();
       meshes_.at(w.mesh).history[MeshWall::Key{w.gid, w.feature}] = w.xi;
+    }
+    const auto nc = rd.get<std::uint32_t>();
+    for (std::uint32_t q = 0; q < nc; ++q) {
+      const auto w = rd.get<CrushedWire>();
+      crushed_[GidPair{w.a, w.b}] = CrushedContact{w.set, w.xi};
     }
     for (ForceSource* src : sources_) {
       const auto len = static_cast<std::size_t>(rd.get<std::uint64_t>());

@@ -42,6 +42,12 @@ struct PairHistoryRecord {
   Vec3 xi;
 };
 
+struct CrushedRecord {
+  GlobalId a, b;
+  double set;
+  Vec3 xi;
+};
+
 /// A bond without padding (Bond has a 1-byte kind before 8-byte fields: its padding bytes are
 /// whatever the last copy left, and equal states must save equal bytes).
 struct BondRecord {
@@ -178,6 +184,9 @@ void Engine::save_state(StateArchive& a, const std::string& p) const {
   std::vector<PairHistoryRecord> carried;
   for (const auto& [k, xi] : carried_history_) carried.push_back({k.a, k.b, xi});
   a.put(p + "carried_history", carried);
+  std::vector<CrushedRecord> crushed;
+  for (const auto& [k, c] : crushed_) crushed.push_back({k.a, k.b, c.set, c.xi});
+  a.put(p + "crushed_pairs", crushed);
 }
 
 void Engine::load_mesh_poses_and_loads(const StateArchive& a, const std::string& p) {
@@ -282,6 +291,13 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
   }
   carried_history_.clear();
   for (const auto& r : a.get<PairHistoryRecord>(p + "carried_history")) carried_history_[GidPair{r.a, r.b}] = r.xi;
+  load_crushed_pairs(a, p, true);
+}
+
+void Engine::load_crushed_pairs(const StateArchive& a, const std::string& p, bool clear) {
+  if (clear) crushed_.clear();
+  if (!a.has(p + "crushed_pairs")) return;  // a checkpoint from before crushed pairs: none then
+  for (const auto& r : a.get<CrushedRecord>(p + "crushed_pairs")) crushed_[GidPair{r.a, r.b}] = {r.set, r.xi};
 }
 
 void Engine::load_state_union(const std::vector<StateArchive>& all, const std::string& p) {
@@ -295,6 +311,7 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   bonds_.clear();
   pairs_.clear();
   carried_history_.clear();
+  crushed_.clear();
   for (auto& m : meshes_) {
     m.history.clear();
     m.next_history.clear();
@@ -349,6 +366,7 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
       if (c.xi.squaredNorm() > 0.0)
         carried_history_.emplace(GidPair::of(gid[c.i], gid[c.j]), gid[c.i] < gid[c.j] ? c.xi : Vec3(-c.xi));
     for (const auto& r : a.get<PairHistoryRecord>(p + "carried_history")) carried_history_.emplace(GidPair{r.a, r.b}, r.xi);
+    load_crushed_pairs(a, p, false);
     const auto mh = get_nested<MeshHistoryRecord>(a, p + "mesh_history");
     if (mh.size() != meshes_.size()) throw std::runtime_error("engine checkpoint: another number of mesh walls");
     for (std::size_t k = 0; k < meshes_.size(); ++k)

@@ -74,6 +74,9 @@ struct BondsDef {
   /// Lattice bonds also break when their largest compressive stress passes this multiple of their
   /// tensile strength (ParallelBondParams::sigma_cc); infinite (absent): never in compression.
   double compressive_strength_ratio = INFINITY;
+  /// A bond broken with its particles deeper than half stability.max_overlap_ratio: "set" (the
+  /// contact pushes back only beyond that half, bonded::EngineDef::crushed_set) or "elastic".
+  std::string crushed_contact = "set";
   bool strength_given = false;             ///< tensile_strength or shear_strength was in the scene
 };
 

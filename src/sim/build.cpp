@@ -65,6 +65,7 @@ bonded::EngineDef engine_def(const scene::Scene& s) {
   d.water.current = s.water.current;
   d.limits.max_speed = s.stability.max_speed;
   d.limits.max_overlap_ratio = s.stability.max_overlap_ratio;
+  d.crushed_set = b.crushed_contact == "set";
   return d;
 }
 

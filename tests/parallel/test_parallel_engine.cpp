@@ -205,6 +205,47 @@ TEST(Parallel, ContactHistoryMadeBeforeTheSpreadIsKept) {
   EXPECT_LT(worst, 5e-6);
 }
 
+TEST(Parallel, CrushedPairKeepsItsSetThroughTheSpreadAndAcrossTheCut) {
+  // A bond made 0.7 r deep breaks in shear before the spread (docs/engine.md, "The contact after
+  // a crushed bond"): its pair's permanent set (0.45 r) must reach the spread engine on the rank
+  // that owns the lower id, and travel with it when the pair crosses the cut (x ~ 0) at 50 m/s.
+  // The pair is 1e4 times heavier than the ice, so it stays crushed (it parts in thousands of
+  // steps). Lost at the spread or at a migration, the pair would join the contact list 0.7 r deep
+  // and the run stop at the overlap limit; kept on two ranks, it would be pushed twice.
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  const double r = 0.5 * ice.D;
+  d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), r, 1e9, 1.0, 0.0, 1, 1);
+  auto build = [&](Engine& e) {
+    for (const double x : {-0.1, -0.1 + 1.3 * r}) {
+      auto p = test::sphere_at(ice, Vec3(x, 0, 0));
+      p.mass *= 1e4;
+      p.v = Vec3(50.0, x > 0.0 ? 1.0 : 0.0, 0.0);
+      e.add_particle(p);
+    }
+    e.add_bond(0, 1, BondKind::Lattice);
+    for (int k = -6; k <= 6; ++k) e.add_particle(test::sphere_at(ice, Vec3(0.5 * k, 3.0, 0)));  // the cuts
+    e.run(2);  // serially, every copy alike: the bond breaks and the pair is crushed before the spread
+  };
+  Pair p = make_pair_of(d, build);
+  ASSERT_EQ(p.serial->crushed_pair_count(), 1u);
+  EXPECT_EQ(world().sum(static_cast<std::int64_t>(p.dist->crushed_pair_count())), 1);
+  for (int k = 0; k < 400; ++k) {
+    p.serial->step();
+    p.dist->step();
+  }
+  const double worst = max_position_difference(*p.dist, *p.serial);
+  const std::int64_t migrated = world().sum(static_cast<std::int64_t>(p.dist->parallel_stats().migrated));
+  const std::int64_t crushed = world().sum(static_cast<std::int64_t>(p.dist->crushed_pair_count()));
+  if (world().rank() == 0)
+    std::printf("crushed pair across the cut (%d ranks): %lld migrations, max |x - x_serial| = %.3e m after 400 steps\n",
+                world().size(), static_cast<long long>(migrated), worst);
+  EXPECT_EQ(p.serial->crushed_pair_count(), 1u);  // still crushed
+  EXPECT_EQ(crushed, 1);
+  if (world().size() == 2) EXPECT_GT(migrated, 0);  // the pair crossed x = 0
+  EXPECT_LT(worst, 1e-12);
+}
+
 TEST(Parallel, BondWhoseEndsSitOnDifferentRanksTurnsBothEnds) {
   // Two bonded particles spinning and tumbling across the cut (x = 0): the bond lives on the
   // rank of the lower id, so the other end's rank holds no bond at all, yet that end's
