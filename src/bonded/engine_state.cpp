@@ -296,7 +296,8 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
 
 void Engine::load_crushed_pairs(const StateArchive& a, const std::string& p, bool clear) {
   if (clear) crushed_.clear();
-  if (!a.has(p + "crushed_pairs")) return;  // a checkpoint from before crushed pairs: none then
+  // A checkpoint from before crushed pairs has none; an engine without the set makes none.
+  if (!a.has(p + "crushed_pairs") || !def_.crushed_set) return;
   for (const auto& r : a.get<CrushedRecord>(p + "crushed_pairs")) crushed_[GidPair{r.a, r.b}] = {r.set, r.xi};
 }
 
