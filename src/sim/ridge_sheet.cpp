@@ -214,7 +214,15 @@ void check_ridge_generation(const rigid::RidgeResult& r, const scene::Scene& s, 
 
 void check_ridge_definition(const rigid::RidgeResult& r, const scene::Scene& s, const std::string& path) {
   std::string where;
-  const rigid::RidgeDef want = run_scene_ridge_def(s, nullptr, &where);
+  rigid::RidgeDef want;
+  try {
+    want = run_scene_ridge_def(s, nullptr, &where);
+  } catch (const InputError& e) {  // the section itself is unreadable: say why the run reads it
+    const std::string what = e.what();
+    const std::string msg = what.size() > e.path().size() + 2 ? what.substr(e.path().size() + 2) : what;
+    throw InputError(e.path(), msg + " (the run reads /ridge to check that " + path +
+                                   " was made from it; remove /ridge from the scene to run the file as it is)");
+  }
   const nlohmann::json a = rigid::ridge_def_to_json(want).flatten();
   const nlohmann::json b = rigid::ridge_def_to_json(r.def).flatten();
   std::vector<std::string> bad;

@@ -231,6 +231,12 @@ TEST(RidgeGeneration, CliRunRefusesAMismatchWithExit2AndGenerationTakesTheScenes
   const CliResult sf = hybridsim("check gen_stale_file.json");
   EXPECT_EQ(sf.rc, 2) << sf.err;
   EXPECT_TRUE(has(sf.err, "gen_stale_def.json") && has(sf.err, "/joints/min_area is 0.05 there")) << sf.err;
+  // A definition file that is gone: the error says why the run reads it and how to do without.
+  stale["ridge"] = "no_such_def.json";
+  write("gen_no_def.json", stale.dump());
+  const CliResult nd = hybridsim("check gen_no_def.json");
+  EXPECT_EQ(nd.rc, 2) << nd.err;
+  EXPECT_TRUE(has(nd.err, "no_such_def.json") && has(nd.err, "remove /ridge from the scene")) << nd.err;
   // `bench hybrid` on it times steps at once: its scene must not relax the ridge first (with the
   // relaxation on, as a ridge file turns it on by default, 8 steps took over 5 min of relaxing).
   const CliResult bench = hybridsim("bench hybrid --ridge gen_ridge.h5 --steps 8");
