@@ -373,6 +373,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     LoopPoll poll(comm, signals, opt.flush_interval);
     if (restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
       last = apply_restart(*restart, sim, rec, file, progress);
+      bar.start_at(last);
       std::fprintf(progress, "hybridsim: restarted from %s at step %llu (t = %s s)\n",
                    restart->checkpoint_file.c_str(), static_cast<unsigned long long>(last),
                    sci(sim.engine().time(), 6).c_str());
