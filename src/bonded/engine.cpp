@@ -376,6 +376,51 @@ void Engine::update_exposure() {
                                        ps_.buoyant_volume[i]);
 }
 
+void Engine::build_partner_csr(std::size_t n) {
+  // Bond partners (CSR), to keep bonded pairs out of the contact list; crushed pairs too
+  // (crushed_forces computes them), where both particles are here.
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> crushed_local;
+  for (const auto& [k, c] : crushed_) {
+    const std::uint32_t a = ps_.local(k.a), b = ps_.local(k.b);
+    if (a != ParticleStore::kNone && b != ParticleStore::kNone) crushed_local.emplace_back(a, b);
+  }
+  partner_start_.assign(n + 1, 0);
+  for (const auto& b : bonds_) {
+    ++partner_start_[b.i + 1];
+    ++partner_start_[b.j + 1];
+  }
+  for (const auto& [a, b] : crushed_local) {
+    ++partner_start_[a + 1];
+    ++partner_start_[b + 1];
+  }
+  for (std::size_t i = 0; i < n; ++i) partner_start_[i + 1] += partner_start_[i];
+  partner_list_.resize(partner_start_[n]);
+  {
+    std::vector<std::uint32_t> fill(partner_start_.begin(), partner_start_.end() - 1);
+    for (const auto& b : bonds_) {
+      partner_list_[fill[b.i]++] = b.j;
+      partner_list_[fill[b.j]++] = b.i;
+    }
+    for (const auto& [a, b] : crushed_local) {
+      partner_list_[fill[a]++] = b;
+      partner_list_[fill[b]++] = a;
+    }
+  }
+}
+
+std::unordered_map<GidPair, Vec3, GidPairHash> Engine::take_contact_history() {
+  // Contact history survives the rebuild, keyed by global ids. xi is the tangential
+  // displacement of j relative to i, so it is stored oriented from the lower to the
+  // higher global id and flipped back if the new list orders the pair the other way.
+  // (Under MPI, exchange_full() has already moved it into carried_history_.)
+  std::unordered_map<GidPair, Vec3, GidPairHash> history = std::move(carried_history_);
+  carried_history_.clear();
+  for (const auto& p : pairs_)
+    if (p.xi.squaredNorm() > 0.0)
+      history.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]), ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+  return history;
+}
+
 void Engine::build_pair_list() {
   const std::size_t n = ps_.size();
   ++stats_.neighbor_rebuilds;
@@ -430,44 +475,8 @@ void Engine::build_pair_list() {
     std::vector<std::uint32_t> fill(cell_start_.begin(), cell_start_.end() - 1);
     for (std::size_t i = 0; i < n; ++i) cell_items_[fill[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
   }
-  // Bond partners (CSR), to keep bonded pairs out of the contact list; crushed pairs too
-  // (crushed_forces computes them), where both particles are here.
-  std::vector<std::pair<std::uint32_t, std::uint32_t>> crushed_local;
-  for (const auto& [k, c] : crushed_) {
-    const std::uint32_t a = ps_.local(k.a), b = ps_.local(k.b);
-    if (a != ParticleStore::kNone && b != ParticleStore::kNone) crushed_local.emplace_back(a, b);
-  }
-  partner_start_.assign(n + 1, 0);
-  for (const auto& b : bonds_) {
-    ++partner_start_[b.i + 1];
-    ++partner_start_[b.j + 1];
-  }
-  for (const auto& [a, b] : crushed_local) {
-    ++partner_start_[a + 1];
-    ++partner_start_[b + 1];
-  }
-  for (std::size_t i = 0; i < n; ++i) partner_start_[i + 1] += partner_start_[i];
-  partner_list_.resize(partner_start_[n]);
-  {
-    std::vector<std::uint32_t> fill(partner_start_.begin(), partner_start_.end() - 1);
-    for (const auto& b : bonds_) {
-      partner_list_[fill[b.i]++] = b.j;
-      partner_list_[fill[b.j]++] = b.i;
-    }
-    for (const auto& [a, b] : crushed_local) {
-      partner_list_[fill[a]++] = b;
-      partner_list_[fill[b]++] = a;
-    }
-  }
-  // Contact history survives the rebuild, keyed by global ids. xi is the tangential
-  // displacement of j relative to i, so it is stored oriented from the lower to the
-  // higher global id and flipped back if the new list orders the pair the other way.
-  // (Under MPI, exchange_full() has already moved it into carried_history_.)
-  std::unordered_map<GidPair, Vec3, GidPairHash> history = std::move(carried_history_);
-  carried_history_.clear();
-  for (const auto& p : pairs_)
-    if (p.xi.squaredNorm() > 0.0)
-      history.emplace(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]), ps_.gid[p.i] < ps_.gid[p.j] ? p.xi : Vec3(-p.xi));
+  build_partner_csr(n);
+  std::unordered_map<GidPair, Vec3, GidPairHash> history = take_contact_history();
   const std::uint32_t n_owned = static_cast<std::uint32_t>(ps_.n_owned);
 
   pairs_.clear();

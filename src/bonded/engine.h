@@ -427,6 +427,10 @@ class Engine {
   /// Contact-pair list, then the particles' water exposure (collective under MPI).
   void build_neighbors();
   void build_pair_list();
+  /// build_pair_list's pieces: each particle's bond (and crushed-pair) partners as a CSR
+  /// (partner_start_, partner_list_), and the contact history of the old list, by global ids.
+  void build_partner_csr(std::size_t n);
+  std::unordered_map<GidPair, Vec3, GidPairHash> take_contact_history();
   /// Every owned particle's ParticleExposure (water.h) from the bond list.
   void update_exposure();
   /// Under MPI: the ghost ends' exposure sums, reaches and counts added to their owners'.
@@ -449,6 +453,8 @@ class Engine {
   void insert_distributed(const LatticeInsert& lat, const std::vector<GlobalId>& gid, const std::vector<NewBond>& bonds,
                           const std::vector<LatticeInsert::Attach>& attach);
   void migrate(const std::vector<int>& dest, bool any_rank);
+  /// One rank's migration message into this rank: particles, bonds and every per-pair record.
+  void unpack_migration(const std::vector<char>& in);
   void drop_owned(const std::vector<char>& keep);
   void make_ghosts();
   void forward_ghosts();

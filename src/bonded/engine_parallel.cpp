@@ -281,6 +281,27 @@ void Engine::redistribute() {
   refresh_bond_counts();
 }
 
+namespace {
+
+/// Moves the entries of `map` whose key belongs to a leaving particle (gid_of(key) in `leaving`)
+/// into the section of its destination rank, as wire_of(entry), counting them.
+template <class Map, class GidOf, class WireOf>
+void move_leaving(Map& map, const std::unordered_map<GlobalId, int>& leaving, std::vector<Bytes>& out,
+                  std::vector<std::uint32_t>& count, GidOf gid_of, WireOf wire_of) {
+  for (auto it = map.begin(); it != map.end();) {
+    const auto l = leaving.find(gid_of(it->first));
+    if (l == leaving.end()) {
+      ++it;
+      continue;
+    }
+    put(out[l->second], wire_of(*it));
+    ++count[l->second];
+    it = map.erase(it);
+  }
+}
+
+}  // namespace
+
 void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
   const int me = comm_->rank(), np = comm_->size();
   const std::size_t n = ps_.owned();
@@ -314,36 +335,14 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     ++nbonds[it->second];
   }
   if (any_leave) bonds_.swap(stay);
-  for (auto it = carried_history_.begin(); any_leave && it != carried_history_.end();) {
-    auto l = leaving.find(it->first.a);
-    if (l == leaving.end()) {
-      ++it;
-      continue;
-    }
-    put(hist_out[l->second], PairHistWire{it->first.a, it->first.b, it->second});
-    ++nhist[l->second];
-    it = carried_history_.erase(it);
-  }
-  for (std::uint32_t k = 0; k < meshes_.size(); ++k)
-    for (auto it = meshes_[k].history.begin(); any_leave && it != meshes_[k].history.end();) {
-      auto l = leaving.find(it->first.gid);
-      if (l == leaving.end()) {
-        ++it;
-        continue;
-      }
-      put(mesh_out[l->second], MeshHistWire{k, it->first.gid, it->first.feature, it->second});
-      ++nmesh[l->second];
-      it = meshes_[k].history.erase(it);
-    }
-  for (auto it = crushed_.begin(); any_leave && it != crushed_.end();) {
-    auto l = leaving.find(it->first.a);
-    if (l == leaving.end()) {
-      ++it;
-      continue;
-    }
-    put(crushed_out[l->second], CrushedWire{it->first.a, it->first.b, it->second.set, it->second.xi});
-    ++ncrushed[l->second];
-    it = crushed_.erase(it);
+  if (any_leave) {  // the records keyed by a leaving particle go with it
+    move_leaving(carried_history_, leaving, hist_out, nhist, [](const GidPair& k) { return k.a; },
+                 [](const auto& e) { return PairHistWire{e.first.a, e.first.b, e.second}; });
+    for (std::uint32_t k = 0; k < meshes_.size(); ++k)
+      move_leaving(meshes_[k].history, leaving, mesh_out, nmesh, [](const MeshWall::Key& key) { return key.gid; },
+                   [k](const auto& e) { return MeshHistWire{k, e.first.gid, e.first.feature, e.second}; });
+    move_leaving(crushed_, leaving, crushed_out, ncrushed, [](const GidPair& key) { return key.a; },
+                 [](const auto& e) { return CrushedWire{e.first.a, e.first.b, e.second.set, e.second.xi}; });
   }
   std::vector<std::vector<Bytes>> src_out(sources_.size(), std::vector<Bytes>(np));
   if (any_leave)
@@ -387,49 +386,52 @@ void Engine::migrate(const std::vector<int>& dest, bool any_rank) {
     comm_->exchange(peers_, send, in);
     from = peers_;
   }
-  for (std::size_t k = 0; k < in.size(); ++k) {
-    if (from[k] == me || in[k].empty()) continue;
-    Reader rd{in[k]};
-    const auto np_in = rd.get<std::uint32_t>();
-    for (std::uint32_t q = 0; q < np_in; ++q) {
-      ps_.push(rd.get<ParticleRecord>());
-      for (auto& h : wall_hist_) h.push_back(rd.get<Vec3>());
-    }
-    ps_.n_owned = ps_.size();
-    const auto nb = rd.get<std::uint32_t>();
-    for (std::uint32_t q = 0; q < nb; ++q) {
-      const auto w = rd.get<BondWire>();
-      Bond b;
-      b.i = b.j = ParticleStore::kNone;  // bound to local indices after the ghost exchange
-      b.gi = w.gi;
-      b.gj = w.gj;
-      b.kind = static_cast<BondKind>(w.kind);
-      b.ref = w.ref;
-      bonds_.push_back(b);
-    }
-    const auto nh = rd.get<std::uint32_t>();
-    for (std::uint32_t q = 0; q < nh; ++q) {
-      const auto w = rd.get<PairHistWire>();
-      carried_history_[GidPair{w.a, w.b}] = w.xi;
-    }
-    const auto nm = rd.get<std::uint32_t>();
-    for (std::uint32_t q = 0; q < nm; ++q) {
-      const auto w = rd.get<MeshHistWire>();
-      meshes_.at(w.mesh).history[MeshWall::Key{w.gid, w.feature}] = w.xi;
-    }
-    const auto nc = rd.get<std::uint32_t>();
-    for (std::uint32_t q = 0; q < nc; ++q) {
-      const auto w = rd.get<CrushedWire>();
-      crushed_[GidPair{w.a, w.b}] = CrushedContact{w.set, w.xi};
-    }
-    for (ForceSource* src : sources_) {
-      const auto len = static_cast<std::size_t>(rd.get<std::uint64_t>());
-      if (rd.pos + len > in[k].size()) throw std::logic_error("hs::bonded: truncated MPI message");
-      if (len > 0) src->unpack_history(in[k].data() + rd.pos, len);
-      rd.pos += len;
-    }
-    if (!rd.done()) throw std::logic_error("hs::bonded: malformed migration message");
+  for (std::size_t k = 0; k < in.size(); ++k)
+    if (from[k] != me && !in[k].empty()) unpack_migration(in[k]);
+}
+
+// One rank's migration message (the layout migrate() assembles).
+void Engine::unpack_migration(const Bytes& in) {
+  Reader rd{in};
+  const auto np_in = rd.get<std::uint32_t>();
+  for (std::uint32_t q = 0; q < np_in; ++q) {
+    ps_.push(rd.get<ParticleRecord>());
+    for (auto& h : wall_hist_) h.push_back(rd.get<Vec3>());
   }
+  ps_.n_owned = ps_.size();
+  const auto nb = rd.get<std::uint32_t>();
+  for (std::uint32_t q = 0; q < nb; ++q) {
+    const auto w = rd.get<BondWire>();
+    Bond b;
+    b.i = b.j = ParticleStore::kNone;  // bound to local indices after the ghost exchange
+    b.gi = w.gi;
+    b.gj = w.gj;
+    b.kind = static_cast<BondKind>(w.kind);
+    b.ref = w.ref;
+    bonds_.push_back(b);
+  }
+  const auto nh = rd.get<std::uint32_t>();
+  for (std::uint32_t q = 0; q < nh; ++q) {
+    const auto w = rd.get<PairHistWire>();
+    carried_history_[GidPair{w.a, w.b}] = w.xi;
+  }
+  const auto nm = rd.get<std::uint32_t>();
+  for (std::uint32_t q = 0; q < nm; ++q) {
+    const auto w = rd.get<MeshHistWire>();
+    meshes_.at(w.mesh).history[MeshWall::Key{w.gid, w.feature}] = w.xi;
+  }
+  const auto nc = rd.get<std::uint32_t>();
+  for (std::uint32_t q = 0; q < nc; ++q) {
+    const auto w = rd.get<CrushedWire>();
+    crushed_[GidPair{w.a, w.b}] = CrushedContact{w.set, w.xi};
+  }
+  for (ForceSource* src : sources_) {
+    const auto len = static_cast<std::size_t>(rd.get<std::uint64_t>());
+    if (rd.pos + len > in.size()) throw std::logic_error("hs::bonded: truncated MPI message");
+    if (len > 0) src->unpack_history(in.data() + rd.pos, len);
+    rd.pos += len;
+  }
+  if (!rd.done()) throw std::logic_error("hs::bonded: malformed migration message");
 }
 
 void Engine::make_ghosts() {
