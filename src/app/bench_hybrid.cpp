@@ -6,9 +6,12 @@
 // 0.6 m level ice and the 0.9 m consolidated layer, D = 0.25 m, calibrated E = 1e7 Pa) over
 // x = [-26.5, 0] m, y = 100 +- 8 m; everywhere else the ridge's own ice cover (the fixed boxes it was
 // generated under) as fixed rigid boxes; the conversion region a 13 m cylinder about the pier;
-// hybrid mode. Every block of the file is present (those inside the pier aside).
+// hybrid mode. Every block of the file is present (those inside the pier aside). Ice, blocks and
+// water have the density and friction the ridge was generated with (the file's), the blocks lie
+// where the file has them: the ridge is as much at rest as its generation left it.
 // Timed: `steps` DEM steps after set-up; reported: the rigid world's ms per rigid step, the DEM's ms
-// per step, the bridge's, and the rigid world's share of the wall time of a hybrid step.
+// per step, the bridge's, the rigid world's share of the wall time of a hybrid step, and the awake
+// blocks and those of them moving faster than the far-sleep speed (what keeps the rest awake).
 //
 // The ridge takes ~15 min of one core to generate; the bench looks for it in the cache directory
 // ($HYBRIDSIM_CACHE_DIR, else $XDG_CACHE_HOME/hybridsim, else ~/.cache/hybridsim) as
@@ -78,13 +81,17 @@ nlohmann::json bench_scene(const rigid::RidgeResult& r, const std::string& path,
   const double x0 = -26.5, x1 = 0.0, w = 16.0;    // the particle sheet (the keel cone scene's)
   const double y0 = yc - 0.5 * w, y1 = yc + 0.5 * w;
   const double gap = 0.5;                          // between the sheet and the fixed ice cover
-  const Vec3 offset(0, 0, -0.045);                 // as the keel cone scene (docs there)
+  // The ridge's own world: the blocks where the file has them (no offset), with the density,
+  // friction and water they were settled with, so that the ridge is at rest as generated and far
+  // sleep keeps its far part asleep (with the file's 910 / 0.5 run at 920 / 0.3, every block the
+  // sheet's motion woke slid and woke its neighbours: 12,700 of 29,064 awake).
+  const double rho = r.def.ice_density, mu = r.def.settle.friction, rho_w = r.def.water_density;
   nlohmann::json list = nlohmann::json::array();
   // The ridge's ice cover, fixed, minus the sheet's footprint (grown by the gap).
   auto add_box = [&](double xa, double xb, double ya, double yb, double zc, double hz) {
     if (!(xb - xa > 1e-6) || !(yb - ya > 1e-6)) return;
     list.push_back({{"half_extents", {0.5 * (xb - xa), 0.5 * (yb - ya), hz}},
-                    {"position", vec(Vec3(0.5 * (xa + xb), 0.5 * (ya + yb), zc) + offset)},
+                    {"position", vec(Vec3(0.5 * (xa + xb), 0.5 * (ya + yb), zc))},
                     {"fixed", true}});
   };
   const double hx0 = x0 - gap, hx1 = x1 + gap, hy0 = y0 - gap, hy1 = y1 + gap;
@@ -98,9 +105,9 @@ nlohmann::json bench_scene(const rigid::RidgeResult& r, const std::string& path,
     add_box(std::max(xa, hx1), xb, std::max(ya, hy0), std::min(yb, hy1), zc, hz);
   }
   nlohmann::json blocks = {{"ridge_file", std::filesystem::absolute(path).string()},
-                           {"offset", vec(offset)},
                            {"keep_sail", true},
-                           {"density", 920},
+                           {"density", rho},
+                           {"friction", mu},
                            {"conversion", "hybrid"},
                            {"region", {{"shape", "cylinder"}, {"radius", 13.0}, {"z_min", -12}, {"z_max", 4}}},
                            {"safety_factor", 1.0},
@@ -113,10 +120,12 @@ nlohmann::json bench_scene(const rigid::RidgeResult& r, const std::string& path,
       {"name", "bench_hybrid"},
       {"time", {{"duration", 1.0}, {"output_interval", 0.02}}},
       {"material",
-       {{"density", 920}, {"youngs_modulus", 1e7}, {"poisson_ratio", 0.3}, {"particle_diameter", 0.25},
-        {"restitution", 0.3}, {"friction", 0.3}, {"stiffness_model", "calibrated"}, {"flexural_strength", 5e4}}},
+       {{"density", rho}, {"youngs_modulus", 1e7}, {"poisson_ratio", 0.3}, {"particle_diameter", 0.25},
+        {"restitution", 0.3}, {"friction", mu}, {"stiffness_model", "calibrated"},
+        // the keel scenes' strength: at 5e4 Pa the sheet breaks under the keel's buoyancy
+        {"flexural_strength", 5e5}}},
       {"bonds", {{"damping_ratio", 0.1}, {"freeze_strength_fraction", 0.1}}},
-      {"water", {{"level", 0.0}, {"density", 1025}, {"linear_drag_per_area", 1000}, {"drag_coefficient", 1.0}}},
+      {"water", {{"level", 0.0}, {"density", rho_w}, {"linear_drag_per_area", 1000}, {"drag_coefficient", 1.0}}},
       {"ice",
        {{"thickness", r.def.level_ice_thickness},
         {"length", x1 - x0},
@@ -150,8 +159,16 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   for (const rigid::BlockId id : world.blocks()) dynamic += !world.fixed(id);
   const bridge::HybridReport r0 = hy.report();
   const std::uint64_t steps = opt.steps > 0 ? opt.steps : 200;
-  double awake_sum = 0.0;
+  double awake_sum = 0.0, moving_sum = 0.0;
   std::size_t awake_max = 0, awake_samples = 0;
+  // Awake blocks moving faster than the far-sleep speed: what keeps the rest of the ridge awake.
+  const double v_sleep = s.blocks.far_sleep_speed;
+  auto moving_count = [&] {
+    std::size_t n = 0;
+    for (const rigid::BlockId id : world.blocks())
+      if (!world.fixed(id) && !world.asleep(id) && world.velocity(id).norm() > v_sleep) ++n;
+    return n;
+  };
   std::uint64_t rigid_before = hy.report().rigid_steps;
   const auto t1 = Clock::now();
   for (std::uint64_t k = 0; k < steps; ++k) {
@@ -160,6 +177,7 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
       rigid_before = hy.report().rigid_steps;
       const std::size_t a = world.awake_count();
       awake_sum += static_cast<double>(a);
+      moving_sum += static_cast<double>(moving_count());
       awake_max = std::max(awake_max, a);
       ++awake_samples;
     }
@@ -181,6 +199,10 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   j["joints"] = world.joint_count();
   j["particles"] = sim.engine().global_particle_count();
   j["far_sleep"] = !opt.no_far_sleep;
+  // the world's ice and water: the ridge file's own (its generation's), so that it is at rest
+  j["ice_density"] = s.material.density;
+  j["friction"] = s.material.friction;
+  j["water_density"] = s.water.density;
   j["steps"] = steps;
   j["rigid_steps"] = rigid_steps;
   j["steps_per_rigid_step"] = r.steps_per_rigid_step;
@@ -196,6 +218,7 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   j["bridge_share"] = bridge_s / wall;
   j["awake_blocks_mean"] = awake_samples ? awake_sum / static_cast<double>(awake_samples) : 0.0;
   j["awake_blocks_max"] = awake_max;
+  j["moving_blocks_mean"] = awake_samples ? moving_sum / static_cast<double>(awake_samples) : 0.0;
   j["conversions"] = r.conversions - r0.conversions;
   j["setup_s"] = setup;
   j["peak_rss_mb"] = comm.max(u.ru_maxrss / 1024.0);

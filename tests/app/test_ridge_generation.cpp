@@ -245,4 +245,24 @@ TEST(RidgeGeneration, CliRunRefusesAMismatchWithExit2AndGenerationTakesTheScenes
   EXPECT_EQ(b.at("steps"), 8);
   EXPECT_GT(b.at("rigid_share").get<double>(), 0.0);
   EXPECT_LT(b.at("setup_s").get<double>(), 60.0) << "the bench's set-up relaxes or settles something";
+  EXPECT_GE(b.at("moving_blocks_mean").get<double>(), 0.0);
+  EXPECT_LE(b.at("moving_blocks_mean").get<double>(), b.at("awake_blocks_mean").get<double>());
+  // A ridge made with other ice (910 kg/m^3, friction 0.5, water 1020): the bench's world takes
+  // the file's values, so that the ridge is at rest as generated (with 920 / 0.3 hard-wired, the
+  // paper-size ridge's blocks slid wherever the sheet woke them).
+  json other = with_ridge(g, "other_ice.h5");
+  other["ridge"] = g["ridge"];
+  other["ridge"]["settle"].erase("friction");
+  other["material"]["density"] = 910;
+  other["material"]["friction"] = 0.5;
+  other["water"]["density"] = 1020;
+  write("gen_other.json", other.dump());
+  const CliResult og = hybridsim("ridge gen_other.json");
+  ASSERT_EQ(og.rc, 0) << og.err;
+  const CliResult ob = hybridsim("bench hybrid --ridge other_ice.h5 --steps 4");
+  ASSERT_EQ(ob.rc, 0) << ob.err;
+  const json o = json::parse(ob.out);
+  EXPECT_EQ(o.at("ice_density"), 910.0);
+  EXPECT_EQ(o.at("friction"), 0.5);
+  EXPECT_EQ(o.at("water_density"), 1020.0);
 }
