@@ -165,8 +165,11 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   const double v_sleep = s.blocks.far_sleep_speed;
   auto moving_count = [&] {
     std::size_t n = 0;
-    for (const rigid::BlockId id : world.blocks())
-      if (!world.fixed(id) && !world.asleep(id) && world.velocity(id).norm() > v_sleep) ++n;
+    for (const rigid::BlockId id : world.blocks()) {  // far sleep's "moving" (rigid_world.h)
+      if (world.fixed(id) || world.asleep(id)) continue;
+      const double rim = world.angular_velocity(id).norm() * world.half_extents(id).norm();
+      if (world.velocity(id).norm() > v_sleep || rim > v_sleep) ++n;
+    }
     return n;
   };
   std::uint64_t rigid_before = hy.report().rigid_steps;

@@ -16,7 +16,10 @@ class ProgressLine {
  public:
   ProgressLine(std::FILE* out, double duration, std::uint64_t total_steps);
   /// The run goes on from step `k` (a restart): the step rate counts the steps from there.
-  void start_at(std::uint64_t k) { last_step_ = k; }
+  void start_at(std::uint64_t k) {
+    last_step_ = k;
+    last_ = Clock::now();  // (the restart's reading is not stepping time)
+  }
   /// After step k: prints when it is time to (checks the clock every 64 steps).
   void update(std::uint64_t k, const bonded::Engine& e);
   /// Ends the updating line (if one is open).

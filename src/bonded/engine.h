@@ -454,7 +454,7 @@ class Engine {
                           const std::vector<LatticeInsert::Attach>& attach);
   void migrate(const std::vector<int>& dest, bool any_rank);
   /// One rank's migration message into this rank: particles, bonds and every per-pair record.
-  void unpack_migration(const std::vector<char>& in);
+  void unpack_migration(const par::Bytes& in);
   void drop_owned(const std::vector<char>& keep);
   void make_ghosts();
   void forward_ghosts();
