@@ -161,17 +161,6 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   const std::uint64_t steps = opt.steps > 0 ? opt.steps : 200;
   double awake_sum = 0.0, moving_sum = 0.0;
   std::size_t awake_max = 0, awake_samples = 0;
-  // Awake blocks moving faster than the far-sleep speed: what keeps the rest of the ridge awake.
-  const double v_sleep = s.blocks.far_sleep_speed;
-  auto moving_count = [&] {
-    std::size_t n = 0;
-    for (const rigid::BlockId id : world.blocks()) {  // far sleep's "moving" (rigid_world.h)
-      if (world.fixed(id) || world.asleep(id)) continue;
-      const double rim = world.angular_velocity(id).norm() * world.half_extents(id).norm();
-      if (world.velocity(id).norm() > v_sleep || rim > v_sleep) ++n;
-    }
-    return n;
-  };
   std::uint64_t rigid_before = hy.report().rigid_steps;
   const auto t1 = Clock::now();
   for (std::uint64_t k = 0; k < steps; ++k) {
@@ -180,7 +169,8 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
       rigid_before = hy.report().rigid_steps;
       const std::size_t a = world.awake_count();
       awake_sum += static_cast<double>(a);
-      moving_sum += static_cast<double>(moving_count());
+      // awake blocks faster than the far-sleep speed: what keeps the rest of the ridge awake
+      moving_sum += static_cast<double>(world.moving_count());
       awake_max = std::max(awake_max, a);
       ++awake_samples;
     }

@@ -675,6 +675,13 @@ std::size_t RigidWorld::awake_count() const {
   return n - impl_->asleep_count;
 }
 
+std::size_t RigidWorld::moving_count() const {
+  std::size_t n = 0;
+  for (const BlockSlot& s : impl_->blocks)
+    if (s.alive && !s.fixed && !s.asleep && impl_->block_moving(s)) ++n;
+  return n;
+}
+
 double RigidWorld::kinetic_energy() const {
   double e = 0.0;
   for (const BlockSlot& s : impl_->blocks) {

@@ -252,6 +252,8 @@ class RigidWorld {
   bool asleep(BlockId id) const;
   /// Dynamic blocks awake now (all dynamic blocks without far sleep).
   std::size_t awake_count() const;
+  /// Awake dynamic blocks moving by the far-sleep rule (|v| or |w| |h| above far_sleep.speed).
+  std::size_t moving_count() const;
 
   /// Sum of 1/2 m v^2 + 1/2 w.I w over dynamic blocks, J.
   double kinetic_energy() const;
