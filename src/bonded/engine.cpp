@@ -731,12 +731,12 @@ void Engine::bond_forces() {
     const double rs = ps_.radius[b.i] + ps_.radius[b.j];
     const double rmin = std::min(ps_.radius[b.i], ps_.radius[b.j]);
     const double ratio = (rs - (ps_.x[b.j] - ps_.x[b.i]).norm()) / rmin;
-    const double half = 0.5 * def_.limits.max_overlap_ratio;
+    const double h = def_.crushed_set_depth;
     std::uint8_t mark = 0xff;  // 0xff: broken, its pair joins the contact list; 0xfe: crushed
-    if (ratio > half) {
+    if (ratio > h) {
       squeezed_breaks_.push_back({ps_.gid[b.i], ps_.gid[b.j], ratio, ratio * rmin / rs, step_, bb.mode});
       if (def_.crushed_set) {
-        crushed_[GidPair::of(ps_.gid[b.i], ps_.gid[b.j])] = {(ratio - half) * rmin, Vec3::Zero()};
+        crushed_[GidPair::of(ps_.gid[b.i], ps_.gid[b.j])] = {(ratio - h) * rmin, Vec3::Zero()};
         mark = 0xfe;
       }
     }
@@ -877,7 +877,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
          "(a smaller step does not help): the ice there is crushed or rolled past what its bonds represent. "
       << (def_.crushed_set ? ""
                            : "bonds.crushed_contact = \"set\" (the default; this run has \"elastic\") lets the "
-                             "contact take over at half the limit, the rest of the overlap its permanent set. ")
+                             "contact take over at bonds.crushed_set_depth, the rest of the overlap its permanent set. ")
       << "A compressive strength for the bonds (bonds.compressive_strength_ratio) breaks squeezed bonds sooner, "
          "and stiffer ice (material.youngs_modulus; the step shrinks with it) keeps the strains small; "
          "docs/engine.md, \"Crushed bonds\". Output written so far is kept; this step was not written.";

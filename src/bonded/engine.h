@@ -63,10 +63,14 @@ struct EngineDef {
   double skin = 0.0;                 ///< Verlet skin, m; 0 = 0.1 * smallest diameter
   bool spatial_sort = true;          ///< reorder particles by cell at neighbour rebuilds
   StabilityLimits limits;
-  /// A bond that breaks with its particles deeper than half limits.max_overlap_ratio (squeezed,
-  /// crushed) leaves its pair a contact with a permanent set: the overlap beyond that half
-  /// (docs/engine.md, "Crushed bonds"). false: the contact starts from the whole overlap.
+  /// A bond that breaks with its particles deeper than crushed_set_depth x the smaller radius
+  /// (squeezed, crushed) leaves its pair a contact with a permanent set: the overlap beyond that
+  /// depth (docs/engine.md, "Crushed bonds"). false: the contact starts from the whole overlap.
   bool crushed_set = true;
+  /// h, as a fraction of the smaller radius: half the default limits.max_overlap_ratio. Its own
+  /// figure, not derived from the limit: a limit is a check, and changing it (on a restart, say)
+  /// must not change the physics.
+  double crushed_set_depth = 0.25;
 };
 
 /// What a force source sees of the force evaluation it takes part in.
@@ -495,8 +499,8 @@ class Engine {
   std::vector<Bond> bonds_;
   BondBatch bond_batch_;                 ///< SoA copy of bonds_ for the kernel (bond_kernel.h)
   std::vector<BrokenBond> broken_bonds_; ///< scratch of bond_forces
-  /// Bonds broken in the last two steps while squeezed to an overlap beyond half the
-  /// stability.max_overlap_ratio: the contact that replaces each starts that deep, so a blow-up
+  /// Bonds broken in the last two steps while squeezed to an overlap beyond
+  /// EngineDef::crushed_set_depth: the contact that replaces each starts that deep, so a blow-up
   /// report on its pair names the bond (check_blowup). Usually empty.
   struct SqueezedBreak {
     GlobalId gi, gj;

@@ -1,7 +1,7 @@
 // Crushed pairs (docs/engine.md, "Crushed bonds"): a bond that breaks with its particles squeezed
-// deeper than half stability.max_overlap_ratio leaves a contact with a permanent set. The ice
-// between the two centres has failed; the contact pushes back only on the overlap beyond
-// set = overlap at the break - half the limit, so it takes over from the bond at half the limit,
+// deeper than h = EngineDef::crushed_set_depth (0.25 r, half the default stability limit) leaves a
+// contact with a permanent set. The ice between the two centres has failed; the contact pushes
+// back only on the overlap beyond set = overlap at the break - h, so it takes over from the bond at h,
 // whatever the squeeze, instead of at the whole overlap (a contact that starts 0.7 r deep is past
 // the stability limit at once, and its force, k_n 0.7 r, is a kick no bond was carrying).
 //

@@ -30,7 +30,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/bonds",
        {"tensile_strength", "shear_strength", "damping_ratio", "radius_ratio", "freeze_tensile_strength",
         "freeze_shear_strength", "freeze_strength_fraction", "compressive_strength_ratio",
-        "crushed_contact"}},
+        "crushed_contact", "crushed_set_depth"}},
       {"/water", {"enabled", "level", "density", "linear_drag_per_area", "drag_coefficient", "current", "linear_drag"}},
       {"/ice", {"type", "thickness", "length", "width", "origin", "consolidated_layer"}},
       {"/ice/consolidated_layer", {"thickness", "width", "center_x"}},
@@ -210,6 +210,9 @@ void read_bonds(const JsonObject& root, Scene& s) {
                "compressive strength of lattice and freeze bonds as a multiple of the lattice bond's tensile "
                "strength, e.g. 3 (leave it out for bonds that never fail in compression)");
   b.crushed_contact = o.choice("crushed_contact", b.crushed_contact, {"set", "elastic"});
+  b.crushed_set_depth = o.number("crushed_set_depth", b.crushed_set_depth, {0.0, 1.0, true, true}, "",
+                                 "overlap / smaller radius beyond which a broken bond's contact keeps a permanent "
+                                 "set, e.g. 0.25");
   b.strength_given = o.has("tensile_strength") || o.has("shear_strength");
   // "calibrated" derives the bond strength from material.flexural_strength: both at once would be
   // two answers to one question.

@@ -74,9 +74,10 @@ struct BondsDef {
   /// Lattice bonds also break when their largest compressive stress passes this multiple of their
   /// tensile strength (ParallelBondParams::sigma_cc); infinite (absent): never in compression.
   double compressive_strength_ratio = INFINITY;
-  /// A bond broken with its particles deeper than half stability.max_overlap_ratio: "set" (the
-  /// contact pushes back only beyond that half, bonded::EngineDef::crushed_set) or "elastic".
+  /// A bond broken with its particles deeper than crushed_set_depth x r: "set" (the contact
+  /// pushes back only beyond that depth, bonded::EngineDef::crushed_set) or "elastic".
   std::string crushed_contact = "set";
+  double crushed_set_depth = 0.25;  ///< h / smaller radius (bonded::EngineDef::crushed_set_depth)
   bool strength_given = false;             ///< tensile_strength or shear_strength was in the scene
 };
 

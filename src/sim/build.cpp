@@ -66,6 +66,7 @@ bonded::EngineDef engine_def(const scene::Scene& s) {
   d.limits.max_speed = s.stability.max_speed;
   d.limits.max_overlap_ratio = s.stability.max_overlap_ratio;
   d.crushed_set = b.crushed_contact == "set";
+  d.crushed_set_depth = b.crushed_set_depth;
   return d;
 }
 

@@ -142,6 +142,25 @@ TEST(CalibratedIce, FreezeStrengthAsAFractionOfTheLatticeBond) {
   }
 }
 
+// bonds.crushed_set_depth: the depth h beyond which a broken bond's contact keeps a permanent set
+// (docs/engine.md, "The contact after a crushed bond") reaches the engine, 0.25 r when absent
+// whatever stability.max_overlap_ratio is; outside (0, 1) it is refused naming the field.
+TEST(CalibratedIce, CrushedSetDepthReachesTheEngineAndIsNotTheOverlapLimit) {
+  const auto d = sim::engine_def(scene_from(fill("", ", \"bonds\": {\"crushed_set_depth\": 0.3}")));
+  EXPECT_EQ(d.crushed_set_depth, 0.3);
+  const auto e = sim::engine_def(scene_from(fill("", ", \"stability\": {\"max_overlap_ratio\": 0.8}")));
+  EXPECT_EQ(e.crushed_set_depth, 0.25);
+  EXPECT_EQ(e.limits.max_overlap_ratio, 0.8);
+  for (const char* bad : {"0", "1"}) {
+    try {
+      scene_from(fill("", std::string(", \"bonds\": {\"crushed_set_depth\": ") + bad + "}"));
+      ADD_FAILURE() << "accepted " << bad;
+    } catch (const InputError& ex) {
+      EXPECT_EQ(ex.path(), "/bonds/crushed_set_depth");
+    }
+  }
+}
+
 // bonds.compressive_strength_ratio: the lattice bonds' compressive strength is that multiple of
 // their (calibrated) tensile strength, and freeze bonds get the same (crushing is the ice's, not
 // the interface's); absent, no bond fails in compression; zero or negative is refused naming the field.
