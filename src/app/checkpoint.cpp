@@ -21,6 +21,7 @@ nlohmann::json identity_json(const nlohmann::json& j) {
   nlohmann::json c = j;
   if (c.is_object()) {
     c.erase("output");
+    c.erase("stability");  // checks, not physics: a restart may move a limit (docs/output.md)
     if (c.contains("time") && c["time"].is_object()) c["time"].erase("checkpoint_interval");
   }
   return c;
@@ -47,6 +48,26 @@ std::string first_difference(const nlohmann::json& a, const nlohmann::json& b, c
     return a.size() == b.size() ? "" : at + "/" + std::to_string(std::min(a.size(), b.size()));
   }
   return a == b ? "" : (at.empty() ? "/" : at);
+}
+
+/// "/stability/<key>: <was> -> <now>" for each stability limit the restart changes ("default" when
+/// the scene leaves it out).
+std::vector<std::string> stability_changes(const nlohmann::json& saved, const nlohmann::json& now) {
+  const auto section = [](const nlohmann::json& j) {
+    return j.is_object() && j.contains("stability") && j["stability"].is_object() ? j["stability"]
+                                                                                 : nlohmann::json::object();
+  };
+  const nlohmann::json a = section(saved), b = section(now);
+  const auto shown = [](const nlohmann::json& s, const std::string& k) {
+    return s.contains(k) ? s[k].dump() : std::string("default");
+  };
+  std::vector<std::string> out;
+  nlohmann::json keys = a;
+  keys.update(b);
+  for (auto it = keys.begin(); it != keys.end(); ++it)
+    if (shown(a, it.key()) != shown(b, it.key()))
+      out.push_back("/stability/" + it.key() + ": " + shown(a, it.key()) + " -> " + shown(b, it.key()));
+  return out;
 }
 
 }  // namespace
@@ -93,6 +114,12 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
                                       (where.empty() ? std::string() : ", first at " + where) +
                                       "; restart with the same scene file and --set options");
   }
+  // The limits this restart moves, after those of the restarts before it (kept in the run file).
+  const std::string before = io::read_root_attribute(r.run_file, "restart_changes");
+  if (!before.empty()) r.changes = nlohmann::json::parse(before).get<std::vector<std::string>>();
+  const std::string at = "at step " + std::to_string(r.meta.step) + " (t = " + nlohmann::json(r.meta.time).dump() + " s) ";
+  for (const std::string& c : stability_changes(nlohmann::json::parse(r.meta.scene_text), s.json))
+    r.changes.push_back(at + c);
   if (r.meta.ranks == comm.size())
     r.state = io::read_checkpoint_rank(r.checkpoint_file, comm.rank());
   else

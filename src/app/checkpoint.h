@@ -34,7 +34,8 @@ class Recorders;
 namespace hs::app {
 
 /// The scene's identity for a checkpoint: FNV-1a of its JSON (overrides applied), leaving out
-/// /time/checkpoint_interval and /output, which may change between the two runs.
+/// /time/checkpoint_interval, /output and /stability, which may change between the two runs
+/// (the stability limits are checks, not physics; Restart::changes lists a change).
 std::string scene_identity(const scene::Scene& s, std::string* canonical_text = nullptr);
 
 /// A checkpoint read for --restart, before the output file is created.
@@ -45,6 +46,10 @@ struct Restart {
   StateArchive state;           ///< this rank's (same rank count)
   std::vector<StateArchive> all;  ///< every saved rank's (another rank count)
   std::vector<io::SeriesRows> series;
+  /// The stability limits changed by this restart and the ones before it, "at step 81027
+  /// (t = 19.43 s) /stability/max_overlap_ratio: default -> 0.75" (printed, and kept in the run
+  /// file's root attribute "restart_changes", a JSON array).
+  std::vector<std::string> changes;
 };
 
 /// Reads the checkpoint of `arg` (a run file "out.h5", its partial name, or "out.ckpt.h5") and

@@ -331,6 +331,11 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       !opt.output.empty() ? opt.output : restart ? io::strip_partial(restart->run_file) : s.output;
   check_run_output(out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
   const std::string ckpt_path = io::checkpoint_path(out_path);
+  io::RunFileMeta meta = run_file_meta(s, comm, opt.fsync);
+  if (restart && !restart->changes.empty()) {
+    for (const std::string& c : restart->changes) std::fprintf(progress, "hybridsim: restart changes %s\n", c.c_str());
+    meta.root_attributes.emplace_back("restart_changes", nlohmann::json(restart->changes).dump());
+  }
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
   sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit};
@@ -356,7 +361,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   }
   sim::Simulation& sim = *built;
   print_warnings(sim.warnings(), progress);
-  io::RunFile file(out_path, run_file_meta(s, comm, opt.fsync));
+  io::RunFile file(out_path, std::move(meta));
   sim::Recorders rec(sim, s, comm);
   rec.declare(file);
   const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);

@@ -221,6 +221,14 @@ StateArchive read_checkpoint_rank(const std::string& path, int rank) {
   return a;
 }
 
+std::string read_root_attribute(const std::string& path, const char* name) {
+  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
+  const hid_t fid = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (fid < 0) throw InputError("--restart", "cannot open the run file '" + path + "' (" + h5::error_stack_text() + ")");
+  Handle f(fid, H5Fclose);
+  return H5Aexists(f.get(), name) > 0 ? get_str_attr(f.get(), name, path) : std::string();
+}
+
 std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows) {
   if (!fs::exists(path)) throw InputError("--restart", "no run file '" + path + "'");
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);

@@ -64,6 +64,9 @@ struct SeriesRows {
 /// Every dataset under /series of the run file at `path`, each cut to its first `rows` rows;
 /// hs::InputError("--restart", ...) when the file cannot be read or a series holds fewer rows.
 std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows);
+/// The run file's root string attribute `name`, "" when it has none (the restart carries
+/// "restart_changes" on).
+std::string read_root_attribute(const std::string& path, const char* name);
 
 class RunFile;
 

@@ -13,6 +13,7 @@
 #include "cli_fixtures.h"
 #include "h5_read.h"
 #include <hdf5.h>
+#include <nlohmann/json.hpp>
 
 #include <signal.h>
 #include <spawn.h>
@@ -22,6 +23,7 @@
 #include <chrono>
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <utility>
 #include <map>
@@ -288,6 +290,81 @@ TEST(Restart, RefusesAFileWithoutCheckpointOrAnotherScene) {
   const auto r3 = hybridsim("run ridge_run.json --set time.duration=0.02 --restart nothere.h5");
   EXPECT_EQ(r3.rc, 2) << r3.err;
   EXPECT_NE(r3.err.find("--restart"), std::string::npos) << r3.err;
+}
+
+namespace {
+
+/// The run file's root string attribute `name` ("" when absent).
+std::string root_attribute(const fs::path& file, const char* name) {
+  std::string s;
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return s;
+  if (H5Aexists(f, name) > 0) {
+    const hid_t a = H5Aopen(f, name, H5P_DEFAULT);
+    const hid_t ft = H5Aget_type(a);
+    const hid_t mt = H5Tcopy(H5T_C_S1);
+    H5Tset_cset(mt, H5Tget_cset(ft));
+    if (H5Tis_variable_str(ft) > 0) {
+      H5Tset_size(mt, H5T_VARIABLE);
+      char* c = nullptr;
+      H5Aread(a, mt, &c);
+      s = c ? c : "";
+      H5free_memory(c);
+    } else {
+      H5Tset_size(mt, H5Tget_size(ft));
+      s.assign(H5Tget_size(ft), '\0');
+      H5Aread(a, mt, s.data());
+      s.resize(std::strlen(s.c_str()));
+    }
+    H5Tclose(mt);
+    H5Tclose(ft);
+    H5Aclose(a);
+  }
+  H5Fclose(f);
+  return s;
+}
+
+}  // namespace
+
+// The stability limits are checks, not physics: a restart may move them (to go on past a stop
+// judged harmless, docs/output.md "Checkpoints"), the run continues bit for bit where the limits
+// are not reached, and the run file keeps every change with the step it was made at, across a
+// chain of restarts. Without /stability left out of the scene identity the restart is refused
+// (exit 2, "first at /stability"); without the record the attribute is missing.
+TEST(Restart, AStabilityLimitMayChangeOnARestartAndTheRunFileRecordsIt) {
+  make_scene();
+  const auto n = hybridsim("run ridge_run.json -o lim_n.h5 --set time.checkpoint_interval=0.45");
+  ASSERT_EQ(n.rc, 0) << n.err;
+  const auto a = hybridsim("run ridge_run.json -o lim_a.h5 --set time.checkpoint_interval=0.33");
+  ASSERT_EQ(a.rc, 0) << a.err;
+  const std::uint64_t ka = checkpoint_step(work_dir() / "lim_a.ckpt.h5");
+  ASSERT_GT(ka, 0u);
+  const auto b = hybridsim("run ridge_run.json --restart lim_a.h5 -o lim_b.h5 --set time.checkpoint_interval=0.45"
+                           " --set stability.max_overlap_ratio=0.6 --set stability.max_speed=90");
+  ASSERT_EQ(b.rc, 0) << b.err;
+  const std::string at = "at step " + std::to_string(ka) + " (t = ";
+  EXPECT_NE(b.err.find("restart changes " + at), std::string::npos) << b.err;
+  EXPECT_NE(b.err.find("/stability/max_overlap_ratio: default -> 0.6"), std::string::npos) << b.err;
+  expect_same_series(work_dir() / "lim_n.h5", work_dir() / "lim_b.h5");
+  const auto rec_b = nlohmann::json::parse(root_attribute(work_dir() / "lim_b.h5", "restart_changes"));
+  ASSERT_EQ(rec_b.size(), 2u) << rec_b.dump();
+  EXPECT_EQ(rec_b[0].get<std::string>().rfind(at, 0), 0u) << rec_b.dump();
+  EXPECT_NE(rec_b[1].get<std::string>().find("/stability/max_speed: default -> 90"), std::string::npos) << rec_b.dump();
+  // A second restart, from B's checkpoint, moving one limit again: the earlier changes stay.
+  const std::uint64_t kb = checkpoint_step(work_dir() / "lim_b.ckpt.h5");
+  ASSERT_GT(kb, ka);
+  const auto c = hybridsim("run ridge_run.json --restart lim_b.h5 -o lim_c.h5"
+                           " --set stability.max_overlap_ratio=0.6 --set stability.max_speed=80");
+  ASSERT_EQ(c.rc, 0) << c.err;
+  expect_same_series(work_dir() / "lim_n.h5", work_dir() / "lim_c.h5");
+  const auto rec_c = nlohmann::json::parse(root_attribute(work_dir() / "lim_c.h5", "restart_changes"));
+  ASSERT_EQ(rec_c.size(), 3u) << rec_c.dump();
+  EXPECT_EQ(rec_c[0], rec_b[0]);
+  EXPECT_EQ(rec_c[1], rec_b[1]);
+  EXPECT_EQ(rec_c[2].get<std::string>().rfind("at step " + std::to_string(kb) + " (t = ", 0), 0u) << rec_c.dump();
+  EXPECT_NE(rec_c[2].get<std::string>().find("/stability/max_speed: 90 -> 80"), std::string::npos) << rec_c.dump();
+  // A run that is not a restart has no record.
+  EXPECT_EQ(root_attribute(work_dir() / "lim_n.h5", "restart_changes"), "");
 }
 
 /// Largest |a - b| over two runs' series `name` (same rows), and the largest |a|.
