@@ -246,12 +246,20 @@ TEST(RidgeGeneration, CliRunRefusesAMismatchWithExit2AndGenerationTakesTheScenes
   EXPECT_GT(b.at("rigid_share").get<double>(), 0.0);
   EXPECT_LT(b.at("setup_s").get<double>(), 60.0) << "the bench's set-up relaxes or settles something";
   EXPECT_TRUE(b.contains("moving_blocks_mean"));
+  // Whether the file's ridge was at rest when its generation stopped, as the file says, and a
+  // warning when it was not (the awake counts then measure its creep).
+  const hs::rigid::RidgeResult gen = hs::io::load_ridge((work_dir() / "gen_ridge.h5").string());
+  EXPECT_EQ(b.at("ridge_settled").get<bool>(), gen.stats.settled);
+  EXPECT_EQ(b.at("ridge_final_asleep_blocks").get<std::size_t>(), gen.stats.final_asleep_blocks);
+  EXPECT_EQ(has(bench.err, "was not settled when its generation stopped"), !gen.stats.settled) << bench.err;
   // A ridge made with other ice (910 kg/m^3, friction 0.5, water 1020): the bench's world takes
   // the file's values, so that the ridge is at rest as generated (with 920 / 0.3 hard-wired, the
   // paper-size ridge's blocks slid wherever the sheet woke them).
   json other = with_ridge(g, "other_ice.h5");
   other["ridge"] = g["ridge"];
   other["ridge"]["settle"].erase("friction");
+  other["ridge"]["settle"]["max_time"] = 2.5;  // stopped before it settles: the bench warns
+  other["ridge"]["settle"]["compaction_time"] = 1.0;
   other["material"]["density"] = 910;
   other["material"]["friction"] = 0.5;
   other["water"]["density"] = 1020;
@@ -264,4 +272,6 @@ TEST(RidgeGeneration, CliRunRefusesAMismatchWithExit2AndGenerationTakesTheScenes
   EXPECT_EQ(o.at("ice_density"), 910.0);
   EXPECT_EQ(o.at("friction"), 0.5);
   EXPECT_EQ(o.at("water_density"), 1020.0);
+  EXPECT_FALSE(o.at("ridge_settled").get<bool>());
+  EXPECT_TRUE(has(ob.err, "was not settled when its generation stopped")) << ob.err;
 }
