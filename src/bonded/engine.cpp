@@ -840,6 +840,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
   s.precision(6);
   bool bad = false;
   const SqueezedBreak* crushed = nullptr;  // the worst pair was a bond broken deep in compression
+  bool bad_overlap = false;                // an overlap, not a speed, stopped the run
   if (!(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed)) {
     bad = true;
     s << "particle " << ps_.gid[worst] << " at (" << ps_.x[worst].transpose() << ") m moves at "
@@ -847,6 +848,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
       << " m/s";
   } else if (!(worst_overlap_ratio_ <= def_.limits.max_overlap_ratio)) {
     bad = true;
+    bad_overlap = true;
     s << "contact overlap reached " << worst_overlap_ratio_
       << " of the particle radius (limit stability.max_overlap_ratio = " << def_.limits.max_overlap_ratio
       << ")";
@@ -854,8 +856,15 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and "
         << sources_[static_cast<std::size_t>(worst_overlap_source_)]->name();
     else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size()) {
-      s << " between particles " << ps_.gid[worst_overlap_i_] << " and " << ps_.gid[worst_overlap_j_];
-      crushed = squeezed_break(ps_.gid[worst_overlap_i_], ps_.gid[worst_overlap_j_]);
+      const std::uint32_t i = worst_overlap_i_, j = worst_overlap_j_;
+      s << " between particles " << ps_.gid[i] << " and " << ps_.gid[j];
+      crushed = squeezed_break(ps_.gid[i], ps_.gid[j]);
+      // How they meet, as their velocities stand at the check (after this step's push): closing
+      // fast is an impact, slowly a squeeze; an overlap that throws them apart was already there.
+      const Vec3 n = (ps_.x[j] - ps_.x[i]).normalized();
+      const double closing = -(ps_.v[j] - ps_.v[i]).dot(n);
+      s << "; they " << (closing >= 0.0 ? "close" : "part") << " at " << std::abs(closing)
+        << " m/s along their line of centres (speeds " << ps_.v[i].norm() << " and " << ps_.v[j].norm() << " m/s)";
     }
     else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ == ParticleStore::kNone)
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and a mesh structure";
@@ -883,9 +892,22 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
          "docs/engine.md, \"Crushed bonds\". Output written so far is kept; this step was not written.";
     throw SimulationError(m.str());
   }
-  m << ". Time step dt = " << dt_ << " s, critical dt = " << crit
-    << " s. Reduce the time step (time.dt_alpha or time.dt), or check stiffness, damping and "
-       "initial overlaps. Output written so far is kept; this step was not written.";
+  m << ". Time step dt = " << dt_ << " s, critical dt = " << crit << " s";
+  if (bad_overlap && dt_ <= 0.9 * crit) {
+    // A stable step: the depth a load or an impact presses a linear contact to does not depend on
+    // it (docs/engine.md, "What an overlap report says"), so the advice is about the load.
+    m.precision(2);
+    m << " (" << dt_ / crit
+      << " of it: a stable step, and a smaller one would press the contact about as deep). The load made this "
+         "overlap: a squeeze, an impact (falling or thrown ice closes fast), or an initial overlap. Stiffer ice "
+         "(material.youngs_modulus; the step shrinks as 1/sqrt(E)) keeps overlaps smaller. If you judge the stop "
+         "harmless, continue from the last checkpoint with a larger stability.max_overlap_ratio (--restart with "
+         "--set; docs/output.md, \"What a restart may change\"). Output written so far is kept; this step was not "
+         "written.";
+  } else {
+    m << ". Reduce the time step (time.dt_alpha or time.dt), or check stiffness, damping and "
+         "initial overlaps. Output written so far is kept; this step was not written.";
+  }
   throw SimulationError(m.str());
 }
 
