@@ -7,6 +7,7 @@
 #include "sim/recorder.h"
 #include "sim/simulation.h"
 
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <regex>
@@ -17,11 +18,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-nlohmann::json identity_json(const nlohmann::json& j) {
+/// The scene JSON a checkpoint is tied to. `legacy`: with /stability, as checkpoints written
+/// before the limits could change on a restart were hashed (they still restart).
+nlohmann::json identity_json(const nlohmann::json& j, bool legacy = false) {
   nlohmann::json c = j;
   if (c.is_object()) {
     c.erase("output");
-    c.erase("stability");  // checks, not physics: a restart may move a limit (docs/output.md)
+    if (!legacy) c.erase("stability");  // checks, not physics: a restart may move a limit (docs/output.md)
     if (c.contains("time") && c["time"].is_object()) c["time"].erase("checkpoint_interval");
   }
   return c;
@@ -50,23 +53,26 @@ std::string first_difference(const nlohmann::json& a, const nlohmann::json& b, c
   return a == b ? "" : (at.empty() ? "/" : at);
 }
 
-/// "/stability/<key>: <was> -> <now>" for each stability limit the restart changes ("default" when
-/// the scene leaves it out).
+/// "/stability/<key>: <was> -> <now>" for each stability limit whose value the restart changes
+/// (a limit the scene leaves out has its default; the values are compared as numbers).
 std::vector<std::string> stability_changes(const nlohmann::json& saved, const nlohmann::json& now) {
-  const auto section = [](const nlohmann::json& j) {
-    return j.is_object() && j.contains("stability") && j["stability"].is_object() ? j["stability"]
-                                                                                 : nlohmann::json::object();
-  };
-  const nlohmann::json a = section(saved), b = section(now);
-  const auto shown = [](const nlohmann::json& s, const std::string& k) {
-    return s.contains(k) ? s[k].dump() : std::string("default");
+  const scene::Scene defaults;
+  const std::pair<const char*, double> limits[] = {{"max_speed", defaults.stability.max_speed},
+                                                   {"max_overlap_ratio", defaults.stability.max_overlap_ratio}};
+  const auto value = [](const nlohmann::json& j, const char* k, double def) {
+    if (j.is_object() && j.contains("stability") && j["stability"].is_object() && j["stability"].contains(k) &&
+        j["stability"][k].is_number())
+      return j["stability"][k].get<double>();
+    return def;
   };
   std::vector<std::string> out;
-  nlohmann::json keys = a;
-  keys.update(b);
-  for (auto it = keys.begin(); it != keys.end(); ++it)
-    if (shown(a, it.key()) != shown(b, it.key()))
-      out.push_back("/stability/" + it.key() + ": " + shown(a, it.key()) + " -> " + shown(b, it.key()));
+  for (const auto& [k, def] : limits) {
+    const double a = value(saved, k, def), b = value(now, k, def);
+    if (a == b) continue;
+    char line[160];
+    std::snprintf(line, sizeof line, "/stability/%s: %.10g -> %.10g", k, a, b);
+    out.push_back(line);
+  }
   return out;
 }
 
@@ -102,22 +108,36 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
   r.meta = io::read_checkpoint_meta(r.checkpoint_file);
   std::string mine;
   const std::string hash = scene_identity(s, &mine);
-  if (hash != r.meta.scene_hash) {
-    std::string where;
+  if (hash != r.meta.scene_hash && io::text_hash(identity_json(s.json, true).dump()) != r.meta.scene_hash) {
+    std::string where, legacy;
     try {
-      const nlohmann::json saved = identity_json(nlohmann::json::parse(r.meta.scene_text));
-      where = first_difference(saved, nlohmann::json::parse(mine));
+      const nlohmann::json saved = nlohmann::json::parse(r.meta.scene_text);
+      where = first_difference(identity_json(saved), nlohmann::json::parse(mine));
+      if (where.empty()) {  // only /stability differs, and the checkpoint's hash includes it
+        where = first_difference(identity_json(saved, true), identity_json(s.json, true));
+        legacy = " (this checkpoint was written before the stability limits could change on a restart: keep "
+                 "its /stability values)";
+      }
     } catch (const std::exception&) {
     }
     throw InputError("--restart", "the scene differs from the one the checkpoint '" + r.checkpoint_file +
                                       "' was written for (scene hash " + hash + " vs " + r.meta.scene_hash + ")" +
-                                      (where.empty() ? std::string() : ", first at " + where) +
+                                      (where.empty() ? std::string() : ", first at " + where) + legacy +
                                       "; restart with the same scene file and --set options");
   }
-  // The limits this restart moves, after those of the restarts before it (kept in the run file).
-  const std::string before = io::read_root_attribute(r.run_file, "restart_changes");
-  if (!before.empty()) r.changes = nlohmann::json::parse(before).get<std::vector<std::string>>();
-  const std::string at = "at step " + std::to_string(r.meta.step) + " (t = " + nlohmann::json(r.meta.time).dump() + " s) ";
+  // The limits this restart moves, after those of the restarts that led to the checkpoint's state
+  // (the checkpoint carries them, so that they always match the state restored).
+  if (!r.meta.restart_changes.empty()) {
+    try {
+      r.changes = nlohmann::json::parse(r.meta.restart_changes).get<std::vector<std::string>>();
+    } catch (const std::exception& e) {
+      throw InputError("--restart", "the checkpoint '" + r.checkpoint_file +
+                                        "' has an unreadable restart_changes record (" + e.what() + ")");
+    }
+  }
+  r.carried_changes = r.changes.size();
+  char at[96];
+  std::snprintf(at, sizeof at, "at step %llu (t = %.6g s) ", static_cast<unsigned long long>(r.meta.step), r.meta.time);
   for (const std::string& c : stability_changes(nlohmann::json::parse(r.meta.scene_text), s.json))
     r.changes.push_back(at + c);
   if (r.meta.ranks == comm.size())
@@ -181,7 +201,8 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
 }
 
 void write_checkpoint(const std::string& ckpt_path, const scene::Scene& s, const sim::Simulation& sim,
-                      const sim::Recorders& rec, io::RunFile& file, const par::Comm& comm) {
+                      const sim::Recorders& rec, io::RunFile& file, const par::Comm& comm,
+                      const std::vector<std::string>& restart_changes) {
   file.flush();  // the run file holds every row the checkpoint counts
   StateArchive a;
   sim.engine().save_state(a, "engine/");
@@ -219,6 +240,7 @@ void write_checkpoint(const std::string& ckpt_path, const scene::Scene& s, const
   meta.scene_text = s.json.dump();
   meta.program_version = HYBRIDSIM_VERSION;
   meta.run_file = file.path();
+  if (!restart_changes.empty()) meta.restart_changes = nlohmann::json(restart_changes).dump();
   io::write_checkpoint(ckpt_path, meta, all);
 }
 

@@ -46,10 +46,12 @@ struct Restart {
   StateArchive state;           ///< this rank's (same rank count)
   std::vector<StateArchive> all;  ///< every saved rank's (another rank count)
   std::vector<io::SeriesRows> series;
-  /// The stability limits changed by this restart and the ones before it, "at step 81027
-  /// (t = 19.43 s) /stability/max_overlap_ratio: default -> 0.75" (printed, and kept in the run
-  /// file's root attribute "restart_changes", a JSON array).
+  /// The stability limits changed by the restarts that led to the checkpoint's state (carried in
+  /// the checkpoint) and by this one, "at step 79230 (t = 18.9987 s) /stability/max_overlap_ratio:
+  /// 0.5 -> 0.75": this restart's are printed; all are kept in the run file's root attribute
+  /// "restart_changes" (a JSON array) and in the checkpoints the continued run writes.
   std::vector<std::string> changes;
+  std::size_t carried_changes = 0;  ///< how many of `changes` came with the checkpoint
 };
 
 /// Reads the checkpoint of `arg` (a run file "out.h5", its partial name, or "out.ckpt.h5") and
@@ -67,7 +69,9 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
 
 /// Writes the checkpoint of the state after the current step (collective under MPI; rank 0
 /// writes the file): flushes `file` first so that it holds every row the checkpoint counts.
+/// `restart_changes`: Restart::changes of the run (none for a run that was not restarted).
 void write_checkpoint(const std::string& ckpt_path, const scene::Scene& s, const sim::Simulation& sim,
-                      const sim::Recorders& rec, io::RunFile& file, const par::Comm& comm);
+                      const sim::Recorders& rec, io::RunFile& file, const par::Comm& comm,
+                      const std::vector<std::string>& restart_changes);
 
 }  // namespace hs::app

@@ -332,9 +332,11 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   check_run_output(out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
   const std::string ckpt_path = io::checkpoint_path(out_path);
   io::RunFileMeta meta = run_file_meta(s, comm, opt.fsync);
-  if (restart && !restart->changes.empty()) {
-    for (const std::string& c : restart->changes) std::fprintf(progress, "hybridsim: restart changes %s\n", c.c_str());
-    meta.root_attributes.emplace_back("restart_changes", nlohmann::json(restart->changes).dump());
+  const std::vector<std::string> changes = restart ? restart->changes : std::vector<std::string>{};
+  if (!changes.empty()) {
+    for (std::size_t k = restart->carried_changes; k < changes.size(); ++k)
+      std::fprintf(progress, "hybridsim: restart changes %s\n", changes[k].c_str());
+    meta.root_attributes.emplace_back("restart_changes", nlohmann::json(changes).dump());
   }
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
@@ -395,11 +397,11 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       const PollResult p = poll.after_step(k, steps);
       if (p.stop) {  // finish here: a checkpoint, the rows (and snapshot) of this step, then close below
         stop = p.stop;
-        if (k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm);  // before write_stop's extra rows
+        if (k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm, changes);  // before write_stop's extra rows
         rec.write_stop(k, sim, file);
         break;
       }
-      if (ckpt_every && k % ckpt_every == 0 && k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm);
+      if (ckpt_every && k % ckpt_every == 0 && k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm, changes);
       else if (p.flush) file.flush();
     }
   } catch (const SimulationError&) {

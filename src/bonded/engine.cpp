@@ -840,7 +840,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
   s.precision(6);
   bool bad = false;
   const SqueezedBreak* crushed = nullptr;  // the worst pair was a bond broken deep in compression
-  bool bad_overlap = false;                // an overlap, not a speed, stopped the run
+  bool bad_overlap = false;  // an overlap between two particles (whose stiffness dt_crit covers) stopped the run
   if (!(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed)) {
     bad = true;
     s << "particle " << ps_.gid[worst] << " at (" << ps_.x[worst].transpose() << ") m moves at "
@@ -848,7 +848,6 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
       << " m/s";
   } else if (!(worst_overlap_ratio_ <= def_.limits.max_overlap_ratio)) {
     bad = true;
-    bad_overlap = true;
     s << "contact overlap reached " << worst_overlap_ratio_
       << " of the particle radius (limit stability.max_overlap_ratio = " << def_.limits.max_overlap_ratio
       << ")";
@@ -859,12 +858,18 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
       const std::uint32_t i = worst_overlap_i_, j = worst_overlap_j_;
       s << " between particles " << ps_.gid[i] << " and " << ps_.gid[j];
       crushed = squeezed_break(ps_.gid[i], ps_.gid[j]);
-      // How they meet, as their velocities stand at the check (after this step's push): closing
-      // fast is an impact, slowly a squeeze; an overlap that throws them apart was already there.
+      bad_overlap = true;
+      // How they arrived in this step: the mid-step velocities v(n+1/2), which this step's push
+      // on the overlap has not yet changed (an owned particle holds v(n+1) here, a ghost v(n+1/2)).
+      // Closing fast is an impact, slowly a squeeze; an overlap that parts them was already there.
+      const auto mid = [&](std::uint32_t k) {
+        return k < ps_.owned() ? Vec3(ps_.v[k] - 0.5 * dt_ * ps_.inv_mass[k] * ps_.f[k]) : ps_.v[k];
+      };
+      const Vec3 vi = mid(i), vj = mid(j);
       const Vec3 n = (ps_.x[j] - ps_.x[i]).normalized();
-      const double closing = -(ps_.v[j] - ps_.v[i]).dot(n);
+      const double closing = -(vj - vi).dot(n);
       s << "; they " << (closing >= 0.0 ? "close" : "part") << " at " << std::abs(closing)
-        << " m/s along their line of centres (speeds " << ps_.v[i].norm() << " and " << ps_.v[j].norm() << " m/s)";
+        << " m/s along their line of centres (speeds " << vi.norm() << " and " << vj.norm() << " m/s in this step)";
     }
     else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ == ParticleStore::kNone)
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and a mesh structure";

@@ -154,6 +154,7 @@ void write_checkpoint(const std::string& path, const CheckpointMeta& meta, const
       Handle lcpl(check_id(H5Pcreate(H5P_LINK_CREATE), "H5Pcreate", "/", t), H5Pclose);
       check(H5Pset_create_intermediate_group(lcpl.get(), 1), "H5Pset_create_intermediate_group", "/", t);
       write_bytes(g.get(), "scene", meta.scene_text, lcpl.get(), t);  // a dataset: no 64 KiB attribute limit
+      if (!meta.restart_changes.empty()) write_bytes(g.get(), "restart_changes", meta.restart_changes, lcpl.get(), t);
       for (std::size_t r = 0; r < ranks.size(); ++r) {
         const std::string rg = "rank_" + std::to_string(r);
         Handle gr(check_id(H5Gcreate2(g.get(), rg.c_str(), H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT), "H5Gcreate2", rg, t),
@@ -196,6 +197,7 @@ CheckpointMeta read_checkpoint_meta(const std::string& path) {
   m.program_version = get_str_attr(g.get(), "program_version", path);
   m.run_file = get_str_attr(g.get(), "run_file", path);
   m.scene_text = read_bytes(g.get(), "scene", path);
+  if (H5Lexists(g.get(), "restart_changes", H5P_DEFAULT) > 0) m.restart_changes = read_bytes(g.get(), "restart_changes", path);
   return m;
 }
 
@@ -219,14 +221,6 @@ StateArchive read_checkpoint_rank(const std::string& path, int rank) {
   StateArchive a;
   for (const auto& n : names) a.entries[n] = read_bytes(grp.get(), n, path);
   return a;
-}
-
-std::string read_root_attribute(const std::string& path, const char* name) {
-  H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
-  const hid_t fid = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  if (fid < 0) throw InputError("--restart", "cannot open the run file '" + path + "' (" + h5::error_stack_text() + ")");
-  Handle f(fid, H5Fclose);
-  return H5Aexists(f.get(), name) > 0 ? get_str_attr(f.get(), name, path) : std::string();
 }
 
 std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows) {

@@ -32,6 +32,9 @@ struct CheckpointMeta {
   std::string scene_text;
   std::string program_version;
   std::string run_file;
+  /// The stability limits changed by the restarts that led to this state (a JSON array of
+  /// strings, app::Restart::changes); "" when none (and in older checkpoints).
+  std::string restart_changes;
 };
 
 /// "dir/run.h5" or "dir/run.partial-123.h5" -> "dir/run.ckpt.h5".
@@ -64,9 +67,6 @@ struct SeriesRows {
 /// Every dataset under /series of the run file at `path`, each cut to its first `rows` rows;
 /// hs::InputError("--restart", ...) when the file cannot be read or a series holds fewer rows.
 std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows);
-/// The run file's root string attribute `name`, "" when it has none (the restart carries
-/// "restart_changes" on).
-std::string read_root_attribute(const std::string& path, const char* name);
 
 class RunFile;
 

@@ -108,7 +108,8 @@ struct RigidWorld::Impl {
   std::vector<std::uint32_t> cf_start;
   std::vector<std::pair<Vec3, Vec3>> cf_list;  // (point, force)
   std::uint64_t cf_step = UINT64_MAX;
-  // joints_of(): intact joints by block slot, rebuilt when the joints changed (sync_joint_order).
+  // joints_of(): intact joints by block slot, rebuilt when the joints changed (sync_joint_order,
+  // set_joint_order).
   std::uint64_t joints_version = 0, jo_version = UINT64_MAX;
   std::vector<std::uint32_t> jo_start, jo_list;
 

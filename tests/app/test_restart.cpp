@@ -329,8 +329,9 @@ std::string root_attribute(const fs::path& file, const char* name) {
 // The stability limits are checks, not physics: a restart may move them (to go on past a stop
 // judged harmless, docs/output.md "Checkpoints"), the run continues bit for bit where the limits
 // are not reached, and the run file keeps every change with the step it was made at, across a
-// chain of restarts. Without /stability left out of the scene identity the restart is refused
-// (exit 2, "first at /stability"); without the record the attribute is missing.
+// chain of restarts (the checkpoint carries the record on). Without /stability left out of the
+// scene identity the restart is refused (exit 2, "first at /stability"); without the record the
+// attribute is missing or short. A limit set to the value it had is no change.
 TEST(Restart, AStabilityLimitMayChangeOnARestartAndTheRunFileRecordsIt) {
   make_scene();
   const auto n = hybridsim("run ridge_run.json -o lim_n.h5 --set time.checkpoint_interval=0.45");
@@ -344,18 +345,21 @@ TEST(Restart, AStabilityLimitMayChangeOnARestartAndTheRunFileRecordsIt) {
   ASSERT_EQ(b.rc, 0) << b.err;
   const std::string at = "at step " + std::to_string(ka) + " (t = ";
   EXPECT_NE(b.err.find("restart changes " + at), std::string::npos) << b.err;
-  EXPECT_NE(b.err.find("/stability/max_overlap_ratio: default -> 0.6"), std::string::npos) << b.err;
+  EXPECT_NE(b.err.find("/stability/max_overlap_ratio: 0.5 -> 0.6"), std::string::npos) << b.err;
   expect_same_series(work_dir() / "lim_n.h5", work_dir() / "lim_b.h5");
   const auto rec_b = nlohmann::json::parse(root_attribute(work_dir() / "lim_b.h5", "restart_changes"));
   ASSERT_EQ(rec_b.size(), 2u) << rec_b.dump();
   EXPECT_EQ(rec_b[0].get<std::string>().rfind(at, 0), 0u) << rec_b.dump();
-  EXPECT_NE(rec_b[1].get<std::string>().find("/stability/max_speed: default -> 90"), std::string::npos) << rec_b.dump();
+  EXPECT_NE(rec_b[0].get<std::string>().find("/stability/max_speed: 100 -> 90"), std::string::npos) << rec_b.dump();
+  EXPECT_NE(rec_b[1].get<std::string>().find("/stability/max_overlap_ratio: 0.5 -> 0.6"), std::string::npos) << rec_b.dump();
   // A second restart, from B's checkpoint, moving one limit again: the earlier changes stay.
   const std::uint64_t kb = checkpoint_step(work_dir() / "lim_b.ckpt.h5");
   ASSERT_GT(kb, ka);
   const auto c = hybridsim("run ridge_run.json --restart lim_b.h5 -o lim_c.h5"
                            " --set stability.max_overlap_ratio=0.6 --set stability.max_speed=80");
   ASSERT_EQ(c.rc, 0) << c.err;
+  EXPECT_EQ(c.err.find("restart changes"), c.err.rfind("restart changes")) << "only this restart's change is printed\n"
+                                                                          << c.err;
   expect_same_series(work_dir() / "lim_n.h5", work_dir() / "lim_c.h5");
   const auto rec_c = nlohmann::json::parse(root_attribute(work_dir() / "lim_c.h5", "restart_changes"));
   ASSERT_EQ(rec_c.size(), 3u) << rec_c.dump();
@@ -363,7 +367,14 @@ TEST(Restart, AStabilityLimitMayChangeOnARestartAndTheRunFileRecordsIt) {
   EXPECT_EQ(rec_c[1], rec_b[1]);
   EXPECT_EQ(rec_c[2].get<std::string>().rfind("at step " + std::to_string(kb) + " (t = ", 0), 0u) << rec_c.dump();
   EXPECT_NE(rec_c[2].get<std::string>().find("/stability/max_speed: 90 -> 80"), std::string::npos) << rec_c.dump();
-  // A run that is not a restart has no record.
+  // A limit set to the value it had (the default, given explicitly) is no change; a run that is not
+  // a restart has no record.
+  const auto d = hybridsim("run ridge_run.json --restart lim_a.h5 -o lim_d.h5 --set stability.max_speed=100");
+  ASSERT_EQ(d.rc, 0) << d.err;
+  EXPECT_EQ(d.err.find("restart changes"), std::string::npos) << d.err;
+  ASSERT_TRUE(fs::exists(work_dir() / "lim_d.h5"));
+  EXPECT_EQ(root_attribute(work_dir() / "lim_d.h5", "restart_changes"), "");
+  ASSERT_TRUE(fs::exists(work_dir() / "lim_n.h5"));
   EXPECT_EQ(root_attribute(work_dir() / "lim_n.h5", "restart_changes"), "");
 }
 

@@ -530,6 +530,37 @@ TEST(Engine, BlowUpAfterABondBrokeSqueezedNamesTheCrushedBond) {
   }
 }
 
+TEST(Engine, AnOverlapStopSaysHowThePairArrived) {
+  // Two free spheres meeting head-on at 20 m/s each (an impact that would go 0.077 r deep), the
+  // overlap limit lowered to 0.02 r so that the run stops while they still close: the report gives
+  // their closing speed in the step, 40 m/s less what 0.02 r of spring took (40 sqrt(1 - (0.02 /
+  // 0.077)^2) = 38.6 at 0.02 r; it stops at 0.026 r), and, the step being stable, the advice about the
+  // load. (The parting case, an overlap that was there from the start, is the test above.)
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  d.limits.max_overlap_ratio = 0.02;
+  const double r = 0.5 * ice.D;
+  Engine e(d);
+  auto a = test::sphere_at(ice, Vec3(0, 0, 0));
+  auto b = test::sphere_at(ice, Vec3(2 * r + 1e-3, 0, 0));
+  a.v = Vec3(20.0, 0, 0);
+  b.v = Vec3(-20.0, 0, 0);
+  e.add_particle(a);
+  e.add_particle(b);
+  std::string msg;
+  try {
+    e.run(2000);
+  } catch (const SimulationError& err) {
+    msg = err.what();
+  }
+  std::printf("%s\n", msg.c_str());
+  const auto at = msg.find("they close at ");
+  ASSERT_NE(at, std::string::npos) << msg;
+  const double closing = std::stod(msg.substr(at + 14));
+  EXPECT_NEAR(closing, 38.24, 0.2) << msg;  // measured 38.2372; v(n+1), after this step's push, gives 37.56
+  EXPECT_NE(msg.find("a stable step"), std::string::npos) << msg;
+}
+
 TEST(Engine, ABondBrokenSqueezedLeavesAContactWithAPermanentSet) {
   // The pair of the test above (bonded 0.7 r deep, sliding at 1 m/s, breaks in shear at step 1),
   // with the default crushed_set: the contact takes over at half the overlap limit (0.25 r), the
