@@ -76,6 +76,12 @@ struct JointSlot {
   std::unique_ptr<btTypedConstraint> constraint;  // btFixedConstraint, or a 6-dof spring
 };
 
+// Checkpoint records (defined with save_state below).
+struct BlockRecord;
+struct JointRecord;
+struct MeshRecord;
+struct ManifoldRecord;
+
 }  // namespace
 
 struct RigidWorld::Impl {
@@ -223,6 +229,14 @@ struct RigidWorld::Impl {
   // with other sleeping blocks are not collided, its bounding box not updated); awake blocks are
   // DISABLE_DEACTIVATION as without the rule. Bullet's own island sleeping is switched off
   // (CanonicalWorld::managed_sleep).
+  // load_state's parts (defined with it).
+  void restore_joints(const std::vector<JointRecord>& joints);
+  void restore_blocks(const std::vector<BlockRecord>& blocks);
+  std::vector<char> wake_for_restore(const std::vector<double>& still);
+  void restore_meshes(const std::vector<MeshRecord>& meshes, const std::vector<Vec3>& loads,
+                      const std::vector<std::uint64_t>& contacts);
+  std::size_t restore_manifolds(const std::vector<ManifoldRecord>& saved, const std::vector<btManifoldPoint>& points);
+
   void put_to_sleep(BlockSlot& s) {
     btRigidBody& b = *s.body;
     b.setLinearVelocity(btVector3(0, 0, 0));
@@ -1152,39 +1166,31 @@ void RigidWorld::save_state(StateArchive& a, const std::string& p) const {
   a.put(p + "counts", std::vector<std::uint64_t>(counts, counts + 3));
 }
 
-std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) {
-  Impl& m = *impl_;
-  const auto blocks = a.get<BlockRecord>(p + "blocks");
-  const auto joints = a.get<JointRecord>(p + "joints");
-  const auto meshes = a.get<MeshRecord>(p + "meshes");
-  if (blocks.size() != m.blocks.size() || joints.size() != m.joints.size() || meshes.size() != m.meshes.size())
-    throw std::runtime_error("rigid world checkpoint: " + std::to_string(blocks.size()) + " block slots, " +
-                             std::to_string(joints.size()) + " joint slots and " + std::to_string(meshes.size()) +
-                             " meshes saved, but the scene builds " + std::to_string(m.blocks.size()) + ", " +
-                             std::to_string(m.joints.size()) + " and " + std::to_string(m.meshes.size()));
-  // Blocks gone since the start (converted): removed, with their joints.
-  for (std::uint32_t k = 0; k < blocks.size(); ++k)
-    if (!blocks[k].alive && m.blocks[k].alive) remove_block(BlockId{k, m.blocks[k].generation});
-  // Joints broken or removed since: their constraints leave the world.
-  for (std::uint32_t k = 0; k < joints.size(); ++k) {
-    JointSlot& j = *m.joints[k];
-    if (!joints[k].has_constraint) m.drop_constraint(j);
+/// Joints broken or removed since the scene was built: their constraints leave the world; every
+/// slot takes its saved state.
+void RigidWorld::Impl::restore_joints(const std::vector<JointRecord>& saved) {
+  for (std::uint32_t k = 0; k < saved.size(); ++k) {
+    JointSlot& j = *joints[k];
+    const JointRecord& r = saved[k];
+    if (!r.has_constraint) drop_constraint(j);
     else if (!j.constraint)
       throw std::runtime_error("rigid world checkpoint: joint " + std::to_string(k) + " is intact in the checkpoint "
                                "but not in the rebuilt world");
-    j.generation = joints[k].generation;
-    j.alive = joints[k].alive != 0;
-    j.broken = joints[k].broken != 0;
-    j.load = joints[k].load;
-    j.feedback.m_appliedForceBodyA = get3(joints[k].feedback[0]);
-    j.feedback.m_appliedTorqueBodyA = get3(joints[k].feedback[1]);
-    j.feedback.m_appliedForceBodyB = get3(joints[k].feedback[2]);
-    j.feedback.m_appliedTorqueBodyB = get3(joints[k].feedback[3]);
+    j.generation = r.generation;
+    j.alive = r.alive != 0;
+    j.broken = r.broken != 0;
+    j.load = r.load;
+    j.feedback.m_appliedForceBodyA = get3(r.feedback[0]);
+    j.feedback.m_appliedTorqueBodyA = get3(r.feedback[1]);
+    j.feedback.m_appliedForceBodyB = get3(r.feedback[2]);
+    j.feedback.m_appliedTorqueBodyB = get3(r.feedback[3]);
   }
-  m.free_joints = a.get<std::uint32_t>(p + "free_joints");
-  for (std::uint32_t k = 0; k < blocks.size(); ++k) {
-    BlockSlot& s = m.blocks[k];
-    const BlockRecord& r = blocks[k];
+}
+
+void RigidWorld::Impl::restore_blocks(const std::vector<BlockRecord>& saved) {
+  for (std::uint32_t k = 0; k < saved.size(); ++k) {
+    BlockSlot& s = blocks[k];
+    const BlockRecord& r = saved[k];
     s.generation = r.generation;
     s.ext_force = r.ext_force;
     s.ext_torque = r.ext_torque;
@@ -1197,30 +1203,31 @@ std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) 
       apply_record(*s.body, r.body);
     }
   }
-  m.free_blocks = a.get<std::uint32_t>(p + "free_blocks");
-  // Far sleep: every block awake for the collision pass below (sleeping pairs would make no
-  // manifolds), put back to sleep after it.
-  std::vector<char> was_asleep(m.blocks.size(), 0);
-  if (m.def.far_sleep.enabled) {
-    const auto still = a.get<double>(p + "sleep_still");
-    if (still.size() != m.blocks.size()) throw std::runtime_error("rigid world checkpoint: far-sleep timers missing");
-    for (std::size_t k = 0; k < m.blocks.size(); ++k) {
-      BlockSlot& s = m.blocks[k];
-      if (!s.alive || s.fixed) continue;
-      was_asleep[k] = s.body->getActivationState() == ISLAND_SLEEPING;
-      if (s.asleep) m.wake(s);
-      s.body->forceActivationState(DISABLE_DEACTIVATION);
-      s.still = still[k];
-    }
+}
+
+/// Far sleep: every block awake for the collision pass of the restore (sleeping pairs would make
+/// no manifolds), its timer restored; returns which were asleep, to put back to sleep after it.
+std::vector<char> RigidWorld::Impl::wake_for_restore(const std::vector<double>& still) {
+  std::vector<char> was_asleep(blocks.size(), 0);
+  if (still.size() != blocks.size()) throw std::runtime_error("rigid world checkpoint: far-sleep timers missing");
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    BlockSlot& s = blocks[k];
+    if (!s.alive || s.fixed) continue;
+    was_asleep[k] = s.body->getActivationState() == ISLAND_SLEEPING;
+    if (s.asleep) wake(s);
+    s.body->forceActivationState(DISABLE_DEACTIVATION);
+    s.still = still[k];
   }
-  m.cf_step = UINT64_MAX;
-  const auto loads = a.get<Vec3>(p + "mesh_loads");
-  const auto contacts = a.get<std::uint64_t>(p + "mesh_contacts");
+  return was_asleep;
+}
+
+void RigidWorld::Impl::restore_meshes(const std::vector<MeshRecord>& saved, const std::vector<Vec3>& loads,
+                                      const std::vector<std::uint64_t>& contacts) {
   std::size_t o = 0;
-  for (std::size_t k = 0; k < meshes.size(); ++k) {
-    MeshSlot& ms = *m.meshes[k];
-    ms.origin = meshes[k].origin;
-    apply_record(*ms.body, meshes[k].body);
+  for (std::size_t k = 0; k < saved.size(); ++k) {
+    MeshSlot& ms = *meshes[k];
+    ms.origin = saved[k].origin;
+    apply_record(*ms.body, saved[k].body);
     MeshLoad& L = ms.load;
     const std::size_t np = L.part_force.size();
     if (o + 2 + 2 * np > loads.size()) throw std::runtime_error("rigid world checkpoint: mesh loads truncated");
@@ -1231,23 +1238,20 @@ std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) 
     o += 2 + 2 * np;
     L.contacts = contacts.at(k);
   }
-  m.time = a.get_value<double>(p + "time");
-  m.steps = a.get_value<std::uint64_t>(p + "steps");
-  const auto counts = a.get<std::uint64_t>(p + "counts");
-  if (counts.size() != 3 || counts[0] != m.block_count || counts[1] != m.intact_joints)
-    throw std::runtime_error("rigid world checkpoint: block or joint counts differ after the restore");
-  m.broken_joints = counts[2];
-  m.sync_joint_order();
-  // Pairs, collision algorithms and manifolds for the restored poses, then the saved points.
-  for (BlockSlot& s : m.blocks)
-    if (s.alive) m.world->updateSingleAabb(s.body.get());
-  m.world->performDiscreteCollisionDetection();
-  const auto saved = a.get<ManifoldRecord>(p + "manifolds");
-  const auto points = a.get<btManifoldPoint>(p + "manifold_points");
+}
+
+/// Pairs, collision algorithms and manifolds for the restored poses, then every manifold's
+/// points replaced by the saved ones (warm-starting impulses included). Returns the saved points
+/// that found no manifold.
+std::size_t RigidWorld::Impl::restore_manifolds(const std::vector<ManifoldRecord>& saved,
+                                                const std::vector<btManifoldPoint>& points) {
+  for (BlockSlot& s : blocks)
+    if (s.alive) world->updateSingleAabb(s.body.get());
+  world->performDiscreteCollisionDetection();
   std::vector<char> used(saved.size(), 0);
-  const int nm = m.dispatcher->getNumManifolds();
+  const int nm = dispatcher->getNumManifolds();
   for (int k = 0; k < nm; ++k) {
-    btPersistentManifold* man = m.dispatcher->getManifoldByIndexInternal(k);
+    btPersistentManifold* man = dispatcher->getManifoldByIndexInternal(k);
     man->clearManifold();
     const std::uint64_t k0 = detail::body_key(man->getBody0()), k1 = detail::body_key(man->getBody1());
     const auto it = std::lower_bound(saved.begin(), saved.end(), std::make_pair(k0, k1),
@@ -1265,15 +1269,48 @@ std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) 
       man->getContactPoint(idx).m_userPersistentData = nullptr;
     }
   }
+  std::size_t lost = 0;
+  for (std::size_t k = 0; k < saved.size(); ++k)
+    if (!used[k]) lost += saved[k].points;
+  return lost;
+}
+
+std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) {
+  Impl& m = *impl_;
+  const auto blocks = a.get<BlockRecord>(p + "blocks");
+  const auto joints = a.get<JointRecord>(p + "joints");
+  const auto meshes = a.get<MeshRecord>(p + "meshes");
+  if (blocks.size() != m.blocks.size() || joints.size() != m.joints.size() || meshes.size() != m.meshes.size())
+    throw std::runtime_error("rigid world checkpoint: " + std::to_string(blocks.size()) + " block slots, " +
+                             std::to_string(joints.size()) + " joint slots and " + std::to_string(meshes.size()) +
+                             " meshes saved, but the scene builds " + std::to_string(m.blocks.size()) + ", " +
+                             std::to_string(m.joints.size()) + " and " + std::to_string(m.meshes.size()));
+  // Blocks gone since the start (converted): removed, with their joints.
+  for (std::uint32_t k = 0; k < blocks.size(); ++k)
+    if (!blocks[k].alive && m.blocks[k].alive) remove_block(BlockId{k, m.blocks[k].generation});
+  m.restore_joints(joints);
+  m.free_joints = a.get<std::uint32_t>(p + "free_joints");
+  m.restore_blocks(blocks);
+  m.free_blocks = a.get<std::uint32_t>(p + "free_blocks");
+  const std::vector<char> was_asleep = m.def.far_sleep.enabled ? m.wake_for_restore(a.get<double>(p + "sleep_still"))
+                                                                : std::vector<char>(m.blocks.size(), 0);
+  m.cf_step = UINT64_MAX;
+  m.restore_meshes(meshes, a.get<Vec3>(p + "mesh_loads"), a.get<std::uint64_t>(p + "mesh_contacts"));
+  m.time = a.get_value<double>(p + "time");
+  m.steps = a.get_value<std::uint64_t>(p + "steps");
+  const auto counts = a.get<std::uint64_t>(p + "counts");
+  if (counts.size() != 3 || counts[0] != m.block_count || counts[1] != m.intact_joints)
+    throw std::runtime_error("rigid world checkpoint: block or joint counts differ after the restore");
+  m.broken_joints = counts[2];
+  m.sync_joint_order();
+  const std::size_t lost =
+      m.restore_manifolds(a.get<ManifoldRecord>(p + "manifolds"), a.get<btManifoldPoint>(p + "manifold_points"));
   for (std::size_t k = 0; k < m.blocks.size(); ++k)
     if (was_asleep[k]) {
       const double still = m.blocks[k].still;
       m.put_to_sleep(m.blocks[k]);  // (velocities: zero, as saved)
       m.blocks[k].still = still;
     }
-  std::size_t lost = 0;
-  for (std::size_t k = 0; k < saved.size(); ++k)
-    if (!used[k]) lost += saved[k].points;
   return lost;
 }
 
