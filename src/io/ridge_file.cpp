@@ -270,6 +270,133 @@ void save_ridge(const std::string& path, const RidgeResult& r) {
   c.ok(H5Fflush(file.get(), H5F_SCOPE_GLOBAL), "H5Fflush", path);
 }
 
+namespace {
+
+/// The generation's definition, statistics and record (the ice it settled under) from /ridge's
+/// attributes.
+void read_ridge_attributes(const Ctx& c, hid_t root, RidgeResult& r) {
+  try {
+    r.def = ridge_def_from_json(nlohmann::json::parse(read_str_attr(c, root, "definition")),
+                                "/ridge@definition");
+    r.stats = stats_from_json(nlohmann::json::parse(read_str_attr(c, root, "stats")));
+    r.generation = nlohmann::json::parse(read_str_attr(c, root, "generation"));
+    const nlohmann::json& sh = r.generation.at("sheet");
+    rigid::RidgeSheet& sheet = r.def.sheet;
+    sheet.floating = sh.at("kind").get<std::string>() == "floating";
+    sheet.consolidated_layer_center_x = r.generation.at("consolidated_layer").at("center_x").get<double>();
+    if (sheet.floating) {
+      sheet.particle_diameter = sh.at("particle_diameter").get<double>();
+      sheet.plate_width = sh.at("plate_width").get<double>();
+      sheet.plates_joined = sh.at("plates_joined").get<bool>();
+      sheet.level_top = sh.at("level_ice").at("top_z").get<double>();
+      sheet.level_underside = sh.at("level_ice").at("underside_z").get<double>();
+      sheet.layer_top = sh.at("consolidated_layer").at("top_z").get<double>();
+      sheet.layer_underside = sh.at("consolidated_layer").at("underside_z").get<double>();
+      sheet.layer_width = sh.at("consolidated_layer").at("width").get<double>();
+    }
+  } catch (const nlohmann::json::exception& e) {
+    throw InputError(c.file, std::string("bad ridge attributes: ") + e.what());
+  }
+}
+
+void read_ridge_blocks(const Ctx& c, hid_t root, RidgeResult& r) {
+  hsize_t n = 0, t = 0;
+  H g(c.id(H5Gopen2(root, "blocks", H5P_DEFAULT), "H5Gopen2", "/ridge/blocks"), H5Gclose);
+  const auto he = read_ds<double>(c, g.get(), "half_extents", 3, n);
+  const auto pos = read_ds<double>(c, g.get(), "position", 3, t);
+  if (t != n) c.fail("row count check", "/ridge/blocks/position");
+  const auto q = read_ds<double>(c, g.get(), "orientation", 4, t);
+  if (t != n) c.fail("row count check", "/ridge/blocks/orientation");
+  const auto part = read_ds<std::int32_t>(c, g.get(), "part", 1, t);
+  if (t != n) c.fail("row count check", "/ridge/blocks/part");
+  check_values(c, he, 3, "/ridge/blocks/half_extents", true);
+  check_values(c, pos, 3, "/ridge/blocks/position");
+  check_values(c, q, 4, "/ridge/blocks/orientation");
+  check_nonzero_rows(c, q, 4, "/ridge/blocks/orientation");
+  r.blocks.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    r.blocks[i].half_extents = get3(he, i);
+    r.blocks[i].position = get3(pos, i);
+    r.blocks[i].orientation = Quat(q[4 * i], q[4 * i + 1], q[4 * i + 2], q[4 * i + 3]);
+    r.blocks[i].part = part[i];
+  }
+
+}
+
+/// After the blocks: a joint's block indices are checked against them (the ice's in read_ridge_ice).
+void read_ridge_joints(const Ctx& c, hid_t root, RidgeResult& r) {
+  const hsize_t n = r.blocks.size();
+  hsize_t m = 0, t = 0;
+  H g(c.id(H5Gopen2(root, "joints", H5P_DEFAULT), "H5Gopen2", "/ridge/joints"), H5Gclose);
+  const auto ab = read_ds<std::int32_t>(c, g.get(), "blocks", 2, m);
+  const auto anchor = read_ds<double>(c, g.get(), "anchor", 3, t);
+  if (t != m) c.fail("row count check", "/ridge/joints/anchor");
+  const auto normal = read_ds<double>(c, g.get(), "normal", 3, t);
+  if (t != m) c.fail("row count check", "/ridge/joints/normal");
+  const auto area = read_ds<double>(c, g.get(), "area", 1, t);
+  if (t != m) c.fail("row count check", "/ridge/joints/area");
+  check_values(c, anchor, 3, "/ridge/joints/anchor");
+  check_values(c, normal, 3, "/ridge/joints/normal");
+  check_nonzero_rows(c, normal, 3, "/ridge/joints/normal");
+  check_values(c, area, 1, "/ridge/joints/area", true);
+  r.joints.resize(m);
+  for (std::size_t i = 0; i < m; ++i) {
+    r.joints[i].a = ab[2 * i];
+    r.joints[i].b = ab[2 * i + 1];
+    r.joints[i].anchor = get3(anchor, i);
+    r.joints[i].normal = get3(normal, i);
+    r.joints[i].area = area[i];
+    if (r.joints[i].a < 0 || static_cast<hsize_t>(r.joints[i].a) >= n ||
+        static_cast<hsize_t>(std::max(r.joints[i].b, 0)) >= n)
+      c.fail("joint index check", "/ridge/joints/blocks");
+  }
+
+}
+
+void read_ridge_ice(const Ctx& c, hid_t root, RidgeResult& r) {
+  hsize_t k = 0, t = 0;
+  H g(c.id(H5Gopen2(root, "ice", H5P_DEFAULT), "H5Gopen2", "/ridge/ice"), H5Gclose);
+  const auto he = read_ds<double>(c, g.get(), "half_extents", 3, k);
+  const auto pos = read_ds<double>(c, g.get(), "position", 3, t);
+  if (t != k) c.fail("row count check", "/ridge/ice/position");
+  const auto part = read_ds<std::int32_t>(c, g.get(), "part", 1, t);
+  if (t != k) c.fail("row count check", "/ridge/ice/part");
+  const auto lift = read_ds<double>(c, g.get(), "lift", 1, t);
+  if (t != k) c.fail("row count check", "/ridge/ice/lift");
+  check_values(c, he, 3, "/ridge/ice/half_extents", true);
+  check_values(c, pos, 3, "/ridge/ice/position");
+  check_values(c, lift, 1, "/ridge/ice/lift");
+  r.ice.resize(k);
+  for (std::size_t i = 0; i < k; ++i) {
+    r.ice[i].half_extents = get3(he, i);
+    r.ice[i].position = get3(pos, i);
+    r.ice[i].part = part[i];
+    r.ice[i].lift = lift[i];
+  }
+  for (const RidgeJoint& j : r.joints)
+    if (j.b < 0 && static_cast<hsize_t>(-1 - j.b) >= k) c.fail("joint ice index check", "/ridge/joints/blocks");
+
+}
+
+void read_ridge_profile(const Ctx& c, hid_t root, RidgeResult& r) {
+  hsize_t t = 0;
+  H g(c.id(H5Gopen2(root, "profile", H5P_DEFAULT), "H5Gopen2", "/ridge/profile"), H5Gclose);
+  RidgeProfile& p = r.profile;
+  p.x = read_ds<double>(c, g.get(), "x", 1, t);
+  p.keel_target = read_ds<double>(c, g.get(), "keel_target", 1, t);
+  p.keel_depth = read_ds<double>(c, g.get(), "keel_depth", 1, t);
+  p.sail_target = read_ds<double>(c, g.get(), "sail_target", 1, t);
+  p.sail_height = read_ds<double>(c, g.get(), "sail_height", 1, t);
+  check_values(c, p.x, 1, "/ridge/profile/x");
+  check_values(c, p.keel_target, 1, "/ridge/profile/keel_target");
+  check_values(c, p.keel_depth, 1, "/ridge/profile/keel_depth");
+  check_values(c, p.sail_target, 1, "/ridge/profile/sail_target");
+  check_values(c, p.sail_height, 1, "/ridge/profile/sail_height");
+
+}
+
+}  // namespace
+
 RidgeResult load_ridge(const std::string& path) {
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   Ctx c{path, true};
@@ -289,111 +416,11 @@ RidgeResult load_ridge(const std::string& path) {
                            "regenerate it with `hybridsim ridge <scene>.json`");
   if (fmt != kFormat) throw InputError(path, "file_format is '" + fmt + "', expected '" + kFormat + "'");
   RidgeResult r;
-  try {
-    r.def = ridge_def_from_json(nlohmann::json::parse(read_str_attr(c, root.get(), "definition")),
-                                "/ridge@definition");
-    r.stats = stats_from_json(nlohmann::json::parse(read_str_attr(c, root.get(), "stats")));
-    r.generation = nlohmann::json::parse(read_str_attr(c, root.get(), "generation"));
-    const nlohmann::json& sh = r.generation.at("sheet");
-    rigid::RidgeSheet& sheet = r.def.sheet;
-    sheet.floating = sh.at("kind").get<std::string>() == "floating";
-    sheet.consolidated_layer_center_x = r.generation.at("consolidated_layer").at("center_x").get<double>();
-    if (sheet.floating) {
-      sheet.particle_diameter = sh.at("particle_diameter").get<double>();
-      sheet.plate_width = sh.at("plate_width").get<double>();
-      sheet.plates_joined = sh.at("plates_joined").get<bool>();
-      sheet.level_top = sh.at("level_ice").at("top_z").get<double>();
-      sheet.level_underside = sh.at("level_ice").at("underside_z").get<double>();
-      sheet.layer_top = sh.at("consolidated_layer").at("top_z").get<double>();
-      sheet.layer_underside = sh.at("consolidated_layer").at("underside_z").get<double>();
-      sheet.layer_width = sh.at("consolidated_layer").at("width").get<double>();
-    }
-  } catch (const nlohmann::json::exception& e) {
-    throw InputError(path, std::string("bad ridge attributes: ") + e.what());
-  }
-  hsize_t n = 0, m = 0, k = 0, t = 0;
-  {
-    H g(c.id(H5Gopen2(root.get(), "blocks", H5P_DEFAULT), "H5Gopen2", "/ridge/blocks"), H5Gclose);
-    const auto he = read_ds<double>(c, g.get(), "half_extents", 3, n);
-    const auto pos = read_ds<double>(c, g.get(), "position", 3, t);
-    if (t != n) c.fail("row count check", "/ridge/blocks/position");
-    const auto q = read_ds<double>(c, g.get(), "orientation", 4, t);
-    if (t != n) c.fail("row count check", "/ridge/blocks/orientation");
-    const auto part = read_ds<std::int32_t>(c, g.get(), "part", 1, t);
-    if (t != n) c.fail("row count check", "/ridge/blocks/part");
-    check_values(c, he, 3, "/ridge/blocks/half_extents", true);
-    check_values(c, pos, 3, "/ridge/blocks/position");
-    check_values(c, q, 4, "/ridge/blocks/orientation");
-    check_nonzero_rows(c, q, 4, "/ridge/blocks/orientation");
-    r.blocks.resize(n);
-    for (std::size_t i = 0; i < n; ++i) {
-      r.blocks[i].half_extents = get3(he, i);
-      r.blocks[i].position = get3(pos, i);
-      r.blocks[i].orientation = Quat(q[4 * i], q[4 * i + 1], q[4 * i + 2], q[4 * i + 3]);
-      r.blocks[i].part = part[i];
-    }
-  }
-  {
-    H g(c.id(H5Gopen2(root.get(), "joints", H5P_DEFAULT), "H5Gopen2", "/ridge/joints"), H5Gclose);
-    const auto ab = read_ds<std::int32_t>(c, g.get(), "blocks", 2, m);
-    const auto anchor = read_ds<double>(c, g.get(), "anchor", 3, t);
-    if (t != m) c.fail("row count check", "/ridge/joints/anchor");
-    const auto normal = read_ds<double>(c, g.get(), "normal", 3, t);
-    if (t != m) c.fail("row count check", "/ridge/joints/normal");
-    const auto area = read_ds<double>(c, g.get(), "area", 1, t);
-    if (t != m) c.fail("row count check", "/ridge/joints/area");
-    check_values(c, anchor, 3, "/ridge/joints/anchor");
-    check_values(c, normal, 3, "/ridge/joints/normal");
-    check_nonzero_rows(c, normal, 3, "/ridge/joints/normal");
-    check_values(c, area, 1, "/ridge/joints/area", true);
-    r.joints.resize(m);
-    for (std::size_t i = 0; i < m; ++i) {
-      r.joints[i].a = ab[2 * i];
-      r.joints[i].b = ab[2 * i + 1];
-      r.joints[i].anchor = get3(anchor, i);
-      r.joints[i].normal = get3(normal, i);
-      r.joints[i].area = area[i];
-      if (r.joints[i].a < 0 || static_cast<hsize_t>(r.joints[i].a) >= n ||
-          static_cast<hsize_t>(std::max(r.joints[i].b, 0)) >= n)
-        c.fail("joint index check", "/ridge/joints/blocks");
-    }
-  }
-  {
-    H g(c.id(H5Gopen2(root.get(), "ice", H5P_DEFAULT), "H5Gopen2", "/ridge/ice"), H5Gclose);
-    const auto he = read_ds<double>(c, g.get(), "half_extents", 3, k);
-    const auto pos = read_ds<double>(c, g.get(), "position", 3, t);
-    if (t != k) c.fail("row count check", "/ridge/ice/position");
-    const auto part = read_ds<std::int32_t>(c, g.get(), "part", 1, t);
-    if (t != k) c.fail("row count check", "/ridge/ice/part");
-    const auto lift = read_ds<double>(c, g.get(), "lift", 1, t);
-    if (t != k) c.fail("row count check", "/ridge/ice/lift");
-    check_values(c, he, 3, "/ridge/ice/half_extents", true);
-    check_values(c, pos, 3, "/ridge/ice/position");
-    check_values(c, lift, 1, "/ridge/ice/lift");
-    r.ice.resize(k);
-    for (std::size_t i = 0; i < k; ++i) {
-      r.ice[i].half_extents = get3(he, i);
-      r.ice[i].position = get3(pos, i);
-      r.ice[i].part = part[i];
-      r.ice[i].lift = lift[i];
-    }
-    for (const RidgeJoint& j : r.joints)
-      if (j.b < 0 && static_cast<hsize_t>(-1 - j.b) >= k) c.fail("joint ice index check", "/ridge/joints/blocks");
-  }
-  {
-    H g(c.id(H5Gopen2(root.get(), "profile", H5P_DEFAULT), "H5Gopen2", "/ridge/profile"), H5Gclose);
-    RidgeProfile& p = r.profile;
-    p.x = read_ds<double>(c, g.get(), "x", 1, t);
-    p.keel_target = read_ds<double>(c, g.get(), "keel_target", 1, t);
-    p.keel_depth = read_ds<double>(c, g.get(), "keel_depth", 1, t);
-    p.sail_target = read_ds<double>(c, g.get(), "sail_target", 1, t);
-    p.sail_height = read_ds<double>(c, g.get(), "sail_height", 1, t);
-    check_values(c, p.x, 1, "/ridge/profile/x");
-    check_values(c, p.keel_target, 1, "/ridge/profile/keel_target");
-    check_values(c, p.keel_depth, 1, "/ridge/profile/keel_depth");
-    check_values(c, p.sail_target, 1, "/ridge/profile/sail_target");
-    check_values(c, p.sail_height, 1, "/ridge/profile/sail_height");
-  }
+  read_ridge_attributes(c, root.get(), r);
+  read_ridge_blocks(c, root.get(), r);
+  read_ridge_joints(c, root.get(), r);
+  read_ridge_ice(c, root.get(), r);
+  read_ridge_profile(c, root.get(), r);
   return r;
 }
 
