@@ -100,145 +100,174 @@ double keel_width_on_pier(const mesh::PierParams& p, double z_top, double h_k, d
   return load > 0.0 ? wp / load : w / h_k;
 }
 
+namespace {
+
+/// The ISO inputs being assembled, each with where its value came from.
+struct InputSetter {
+  analysis::IsoInputs values;
+  struct Pending {
+    IsoSource source;
+    std::string note;
+  };
+  std::vector<std::pair<std::string, Pending>> sources;
+  void set(const char* key, double analysis::IsoInputs::*field, double value, IsoSource source, std::string note = "") {
+    values.*field = value;
+    sources.push_back({key, {source, std::move(note)}});
+  }
+};
+
+/// Thickness, waterline diameter, flexural strength, stiffness: the ice ISO breaks.
+void set_ice_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& m) {
+  const auto& pier = s.structure.pier;
+  const auto& mat = s.material;
+  const auto& an = s.analysis;
+  // Thickness: the ice ISO breaks (the consolidated layer if there is one).
+  const bool layer = s.has_ice && s.ice.has_consolidated_layer;
+  const double nominal = layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
+  const char* nominal_path = layer ? "/ice/consolidated_layer/thickness" : "/ice/thickness";
+  if (m.thickness)
+    in.set("thickness", &analysis::IsoInputs::thickness, *m.thickness, IsoSource::Measured,
+        std::string("mean thickness of the built lattice") + (layer ? " in the consolidated layer" : "") +
+            " (ice volume per unit area); nominal " + nominal_path + " = " + json_fmt(nominal) + " m");
+  else
+    in.set("thickness", &analysis::IsoInputs::thickness, nominal, IsoSource::Scene, std::string("nominal ") + nominal_path);
+
+  in.set("waterline_diameter", &analysis::IsoInputs::waterline_diameter, pier.waterline_diameter,
+      scene_or_default(s, "/structure/pier/waterline_diameter"), "/structure/pier/waterline_diameter");
+
+  // Strength and stiffness: the calibrated lattice's when there is one; an explicit
+  // analysis.flexural_strength still overrides it (as every analysis.* value).
+  if (given(s, "/analysis/flexural_strength"))
+    in.set("flexural_strength", &analysis::IsoInputs::flexural_strength, an.flexural_strength, IsoSource::Scene,
+        "/analysis/flexural_strength");
+  else if (m.calibrated)
+    in.set("flexural_strength", &analysis::IsoInputs::flexural_strength, m.calibrated->flexural_strength, IsoSource::Calibrated,
+        "flexural strength of the calibrated lattice (three-point bending, /material/flexural_strength the target)");
+  else if (given(s, "/material/flexural_strength") && s.json["material"]["flexural_strength"].is_number())
+    in.set("flexural_strength", &analysis::IsoInputs::flexural_strength, s.json["material"]["flexural_strength"].get<double>(),
+        IsoSource::Scene, "/material/flexural_strength");
+  else
+    in.set("flexural_strength", &analysis::IsoInputs::flexural_strength, an.flexural_strength,
+        scene_or_default(s, "/analysis/flexural_strength"), "/analysis/flexural_strength");
+  if (m.calibrated) {
+    in.set("youngs_modulus", &analysis::IsoInputs::youngs_modulus, m.calibrated->youngs_modulus, IsoSource::Calibrated,
+        "Young's modulus of the calibrated lattice");
+    in.set("poisson_ratio", &analysis::IsoInputs::poisson_ratio, m.calibrated->poisson_ratio, IsoSource::Calibrated,
+        "Poisson's ratio of the calibrated lattice");
+  } else {
+    in.set("youngs_modulus", &analysis::IsoInputs::youngs_modulus, mat.youngs_modulus,
+        scene_or_default(s, "/material/youngs_modulus"), "/material/youngs_modulus");
+    in.set("poisson_ratio", &analysis::IsoInputs::poisson_ratio, mat.poisson_ratio, scene_or_default(s, "/material/poisson_ratio"),
+        "/material/poisson_ratio");
+  }
+}
+
+/// The cone, friction, densities and gravity.
+void set_material_inputs(InputSetter& in, const scene::Scene& s) {
+  const auto& pier = s.structure.pier;
+  const auto& mat = s.material;
+  const auto& an = s.analysis;
+  in.set("cone_angle_deg", &analysis::IsoInputs::cone_angle_deg, pier.cone_angle_deg,
+      scene_or_default(s, "/structure/pier/cone_angle_deg"), "/structure/pier/cone_angle_deg");
+  in.set("friction_ice_structure", &analysis::IsoInputs::friction_ice_structure, s.structure.friction,
+      scene_or_default(s, "/structure/friction"), "/structure/friction");
+  if (given(s, "/analysis/friction_ice_ice"))
+    in.set("friction_ice_ice", &analysis::IsoInputs::friction_ice_ice, an.friction_ice_ice, IsoSource::Scene,
+        "/analysis/friction_ice_ice");
+  else
+    in.set("friction_ice_ice", &analysis::IsoInputs::friction_ice_ice, an.friction_ice_ice,
+        scene_or_default(s, "/material/friction"), "/material/friction");
+  in.set("ice_density", &analysis::IsoInputs::ice_density, mat.density, scene_or_default(s, "/material/density"),
+      "/material/density");
+  in.set("water_density", &analysis::IsoInputs::water_density, s.water.density, scene_or_default(s, "/water/density"),
+      "/water/density");
+  in.set("gravity", &analysis::IsoInputs::gravity, s.gravity.norm(), scene_or_default(s, "/gravity"), "|/gravity|");
+}
+
+void set_rubble_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& m) {
+  const auto& an = s.analysis;
+  // The rubble pile.
+  if (given(s, "/analysis/rubble_height"))
+    in.set("rubble_height", &analysis::IsoInputs::rubble_height, an.rubble_height, IsoSource::Scene, "/analysis/rubble_height");
+  else if (m.rubble_height)
+    in.set("rubble_height", &analysis::IsoInputs::rubble_height, *m.rubble_height, IsoSource::Measured,
+        "peak of /series/pile_height_mean (crest of the pile averaged over the waterline width)");
+  else
+    in.set("rubble_height", &analysis::IsoInputs::rubble_height, an.rubble_height, IsoSource::Default, "/analysis/rubble_height");
+  if (given(s, "/analysis/rubble_porosity"))
+    in.set("rubble_porosity", &analysis::IsoInputs::rubble_porosity, an.rubble_porosity, IsoSource::Scene,
+        "/analysis/rubble_porosity");
+  else if (m.ridge)
+    in.set("rubble_porosity", &analysis::IsoInputs::rubble_porosity, m.ridge->porosity, IsoSource::RidgeFile,
+        "keel porosity of " + m.ridge->path + " (used for the pile and the keel)");
+  else
+    in.set("rubble_porosity", &analysis::IsoInputs::rubble_porosity, an.rubble_porosity, IsoSource::Default,
+        "/analysis/rubble_porosity");
+  in.set("rubble_cohesion", &analysis::IsoInputs::rubble_cohesion, an.rubble_cohesion,
+      scene_or_default(s, "/analysis/rubble_cohesion"), "/analysis/rubble_cohesion");
+  if (an.rubble_slope_deg > 0)
+    in.set("rubble_slope_deg", &analysis::IsoInputs::rubble_slope_deg, an.rubble_slope_deg, IsoSource::Scene,
+        "/analysis/rubble_slope_deg");
+  else
+    in.set("rubble_slope_deg", &analysis::IsoInputs::rubble_slope_deg, 0.8 * in.values.cone_angle_deg, IsoSource::Default,
+        "0.8 x cone_angle_deg");
+  in.set("rubble_friction_angle_deg", &analysis::IsoInputs::rubble_friction_angle_deg, an.rubble_friction_angle_deg,
+      scene_or_default(s, "/analysis/rubble_friction_angle_deg"), "/analysis/rubble_friction_angle_deg");
+}
+
+void set_keel_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& m) {
+  const auto& pier = s.structure.pier;
+  const auto& an = s.analysis;
+  // The keel: depth below the consolidated layer, and where on the pier it acts.
+  const double level = s.water.enabled ? s.water.level : 0.0;
+  double keel_top_depth = in.values.thickness * in.values.ice_density / in.values.water_density;  // the ISO sheet's underside
+  if (given(s, "/analysis/keel_depth")) {
+    in.set("keel_depth", &analysis::IsoInputs::keel_depth, an.keel_depth, IsoSource::Scene,
+        "/analysis/keel_depth (ISO: below the consolidated layer)");
+  } else if (m.ridge) {
+    keel_top_depth = m.ridge->layer_bottom_depth;
+    in.set("keel_depth", &analysis::IsoInputs::keel_depth, std::max(0.0, m.ridge->keel_depth - m.ridge->layer_bottom_depth),
+        IsoSource::RidgeFile,
+        "keel depth " + json_fmt(m.ridge->keel_depth) + " m below the waterline minus the consolidated layer's "
+            "underside at " + json_fmt(m.ridge->layer_bottom_depth) + " m, " + m.ridge->path);
+  } else {
+    in.set("keel_depth", &analysis::IsoInputs::keel_depth, 0.0, IsoSource::Default, "no keel");
+  }
+  if (in.values.keel_depth > 0.0) {
+    const double phi = in.values.rubble_friction_angle_deg * std::numbers::pi / 180.0;
+    const double mu_phi = std::tan(std::numbers::pi / 4.0 + phi / 2.0);
+    const double gamma_e = (1.0 - in.values.rubble_porosity) * (in.values.water_density - in.values.ice_density) * in.values.gravity;
+    const double z_top = level - keel_top_depth - s.structure.position.z();  // pier frame
+    in.set("keel_width", &analysis::IsoInputs::keel_width,
+        keel_width_on_pier(pier, z_top, in.values.keel_depth, mu_phi, gamma_e, in.values.rubble_cohesion),
+        scene_or_default(s, "/structure/pier"),
+        "pier diameter weighted by the plug-failure pressure over the keel, z = " + json_fmt(z_top) + " to " +
+            json_fmt(z_top - in.values.keel_depth) + " m in the pier's frame (cone base " +
+            json_fmt(2.0 * mesh::pier_cone_radius(pier, pier.cone_bottom_z)) + " m at z = " +
+            json_fmt(pier.cone_bottom_z) + " m, shaft " + json_fmt(pier.shaft_diameter) + " m)");
+  } else {
+    in.set("keel_width", &analysis::IsoInputs::keel_width, in.values.waterline_diameter, scene_or_default(s, "/structure/pier"),
+        "no keel: the waterline diameter");
+  }
+}
+
+}  // namespace
+
 IsoAssembly assemble_iso_inputs(const scene::Scene& s, const IsoMeasured& m) {
   if (!s.has_structure)
     throw InputError("/structure", "the ISO 19906 estimate needs a cone: add \"structure\": {\"type\": \"pier\"}");
   if (s.structure.type != "pier")
     throw InputError("/structure/type", "the ISO 19906 estimate needs the parametric pier (waterline diameter and "
                                         "cone angle); a mesh structure does not give them");
-  using analysis::IsoInputs;
+  InputSetter setter;
+  set_ice_inputs(setter, s, m);
+  set_material_inputs(setter, s);
+  set_rubble_inputs(setter, s, m);
+  set_keel_inputs(setter, s, m);
   IsoAssembly out;
-  IsoInputs& in = out.in;
-  struct Pending {
-    IsoSource source;
-    std::string note;
-  };
-  std::vector<std::pair<std::string, Pending>> src;
-  const auto set = [&](const char* key, double IsoInputs::*field, double value, IsoSource source,
-                       std::string note = "") {
-    in.*field = value;
-    src.push_back({key, {source, std::move(note)}});
-  };
-  const auto& pier = s.structure.pier;
-  const auto& mat = s.material;
-  const auto& an = s.analysis;
-
-  // Thickness: the ice ISO breaks (the consolidated layer if there is one).
-  const bool layer = s.has_ice && s.ice.has_consolidated_layer;
-  const double nominal = layer ? s.ice.consolidated_layer.thickness : s.ice.thickness;
-  const char* nominal_path = layer ? "/ice/consolidated_layer/thickness" : "/ice/thickness";
-  if (m.thickness)
-    set("thickness", &IsoInputs::thickness, *m.thickness, IsoSource::Measured,
-        std::string("mean thickness of the built lattice") + (layer ? " in the consolidated layer" : "") +
-            " (ice volume per unit area); nominal " + nominal_path + " = " + json_fmt(nominal) + " m");
-  else
-    set("thickness", &IsoInputs::thickness, nominal, IsoSource::Scene, std::string("nominal ") + nominal_path);
-
-  set("waterline_diameter", &IsoInputs::waterline_diameter, pier.waterline_diameter,
-      scene_or_default(s, "/structure/pier/waterline_diameter"), "/structure/pier/waterline_diameter");
-
-  // Strength and stiffness: the calibrated lattice's when there is one; an explicit
-  // analysis.flexural_strength still overrides it (as every analysis.* value).
-  if (given(s, "/analysis/flexural_strength"))
-    set("flexural_strength", &IsoInputs::flexural_strength, an.flexural_strength, IsoSource::Scene,
-        "/analysis/flexural_strength");
-  else if (m.calibrated)
-    set("flexural_strength", &IsoInputs::flexural_strength, m.calibrated->flexural_strength, IsoSource::Calibrated,
-        "flexural strength of the calibrated lattice (three-point bending, /material/flexural_strength the target)");
-  else if (given(s, "/material/flexural_strength") && s.json["material"]["flexural_strength"].is_number())
-    set("flexural_strength", &IsoInputs::flexural_strength, s.json["material"]["flexural_strength"].get<double>(),
-        IsoSource::Scene, "/material/flexural_strength");
-  else
-    set("flexural_strength", &IsoInputs::flexural_strength, an.flexural_strength,
-        scene_or_default(s, "/analysis/flexural_strength"), "/analysis/flexural_strength");
-  if (m.calibrated) {
-    set("youngs_modulus", &IsoInputs::youngs_modulus, m.calibrated->youngs_modulus, IsoSource::Calibrated,
-        "Young's modulus of the calibrated lattice");
-    set("poisson_ratio", &IsoInputs::poisson_ratio, m.calibrated->poisson_ratio, IsoSource::Calibrated,
-        "Poisson's ratio of the calibrated lattice");
-  } else {
-    set("youngs_modulus", &IsoInputs::youngs_modulus, mat.youngs_modulus,
-        scene_or_default(s, "/material/youngs_modulus"), "/material/youngs_modulus");
-    set("poisson_ratio", &IsoInputs::poisson_ratio, mat.poisson_ratio, scene_or_default(s, "/material/poisson_ratio"),
-        "/material/poisson_ratio");
-  }
-
-  set("cone_angle_deg", &IsoInputs::cone_angle_deg, pier.cone_angle_deg,
-      scene_or_default(s, "/structure/pier/cone_angle_deg"), "/structure/pier/cone_angle_deg");
-  set("friction_ice_structure", &IsoInputs::friction_ice_structure, s.structure.friction,
-      scene_or_default(s, "/structure/friction"), "/structure/friction");
-  if (given(s, "/analysis/friction_ice_ice"))
-    set("friction_ice_ice", &IsoInputs::friction_ice_ice, an.friction_ice_ice, IsoSource::Scene,
-        "/analysis/friction_ice_ice");
-  else
-    set("friction_ice_ice", &IsoInputs::friction_ice_ice, an.friction_ice_ice,
-        scene_or_default(s, "/material/friction"), "/material/friction");
-  set("ice_density", &IsoInputs::ice_density, mat.density, scene_or_default(s, "/material/density"),
-      "/material/density");
-  set("water_density", &IsoInputs::water_density, s.water.density, scene_or_default(s, "/water/density"),
-      "/water/density");
-  set("gravity", &IsoInputs::gravity, s.gravity.norm(), scene_or_default(s, "/gravity"), "|/gravity|");
-
-  // The rubble pile.
-  if (given(s, "/analysis/rubble_height"))
-    set("rubble_height", &IsoInputs::rubble_height, an.rubble_height, IsoSource::Scene, "/analysis/rubble_height");
-  else if (m.rubble_height)
-    set("rubble_height", &IsoInputs::rubble_height, *m.rubble_height, IsoSource::Measured,
-        "peak of /series/pile_height_mean (crest of the pile averaged over the waterline width)");
-  else
-    set("rubble_height", &IsoInputs::rubble_height, an.rubble_height, IsoSource::Default, "/analysis/rubble_height");
-  if (given(s, "/analysis/rubble_porosity"))
-    set("rubble_porosity", &IsoInputs::rubble_porosity, an.rubble_porosity, IsoSource::Scene,
-        "/analysis/rubble_porosity");
-  else if (m.ridge)
-    set("rubble_porosity", &IsoInputs::rubble_porosity, m.ridge->porosity, IsoSource::RidgeFile,
-        "keel porosity of " + m.ridge->path + " (used for the pile and the keel)");
-  else
-    set("rubble_porosity", &IsoInputs::rubble_porosity, an.rubble_porosity, IsoSource::Default,
-        "/analysis/rubble_porosity");
-  set("rubble_cohesion", &IsoInputs::rubble_cohesion, an.rubble_cohesion,
-      scene_or_default(s, "/analysis/rubble_cohesion"), "/analysis/rubble_cohesion");
-  if (an.rubble_slope_deg > 0)
-    set("rubble_slope_deg", &IsoInputs::rubble_slope_deg, an.rubble_slope_deg, IsoSource::Scene,
-        "/analysis/rubble_slope_deg");
-  else
-    set("rubble_slope_deg", &IsoInputs::rubble_slope_deg, 0.8 * in.cone_angle_deg, IsoSource::Default,
-        "0.8 x cone_angle_deg");
-  set("rubble_friction_angle_deg", &IsoInputs::rubble_friction_angle_deg, an.rubble_friction_angle_deg,
-      scene_or_default(s, "/analysis/rubble_friction_angle_deg"), "/analysis/rubble_friction_angle_deg");
-
-  // The keel: depth below the consolidated layer, and where on the pier it acts.
-  const double level = s.water.enabled ? s.water.level : 0.0;
-  double keel_top_depth = in.thickness * in.ice_density / in.water_density;  // the ISO sheet's underside
-  if (given(s, "/analysis/keel_depth")) {
-    set("keel_depth", &IsoInputs::keel_depth, an.keel_depth, IsoSource::Scene,
-        "/analysis/keel_depth (ISO: below the consolidated layer)");
-  } else if (m.ridge) {
-    keel_top_depth = m.ridge->layer_bottom_depth;
-    set("keel_depth", &IsoInputs::keel_depth, std::max(0.0, m.ridge->keel_depth - m.ridge->layer_bottom_depth),
-        IsoSource::RidgeFile,
-        "keel depth " + json_fmt(m.ridge->keel_depth) + " m below the waterline minus the consolidated layer's "
-            "underside at " + json_fmt(m.ridge->layer_bottom_depth) + " m, " + m.ridge->path);
-  } else {
-    set("keel_depth", &IsoInputs::keel_depth, 0.0, IsoSource::Default, "no keel");
-  }
-  if (in.keel_depth > 0.0) {
-    const double phi = in.rubble_friction_angle_deg * std::numbers::pi / 180.0;
-    const double mu_phi = std::tan(std::numbers::pi / 4.0 + phi / 2.0);
-    const double gamma_e = (1.0 - in.rubble_porosity) * (in.water_density - in.ice_density) * in.gravity;
-    const double z_top = level - keel_top_depth - s.structure.position.z();  // pier frame
-    set("keel_width", &IsoInputs::keel_width,
-        keel_width_on_pier(pier, z_top, in.keel_depth, mu_phi, gamma_e, in.rubble_cohesion),
-        scene_or_default(s, "/structure/pier"),
-        "pier diameter weighted by the plug-failure pressure over the keel, z = " + json_fmt(z_top) + " to " +
-            json_fmt(z_top - in.keel_depth) + " m in the pier's frame (cone base " +
-            json_fmt(2.0 * mesh::pier_cone_radius(pier, pier.cone_bottom_z)) + " m at z = " +
-            json_fmt(pier.cone_bottom_z) + " m, shaft " + json_fmt(pier.shaft_diameter) + " m)");
-  } else {
-    set("keel_width", &IsoInputs::keel_width, in.waterline_diameter, scene_or_default(s, "/structure/pier"),
-        "no keel: the waterline diameter");
-  }
-
+  out.in = setter.values;
+  const analysis::IsoInputs& in = out.in;
+  const auto& src = setter.sources;
   // One record per input, in the inputs' own order, with their units.
   const nlohmann::json values = analysis::iso_inputs_to_json(in);
   for (const auto& key : analysis::iso_input_keys()) {
