@@ -283,6 +283,84 @@ BendingResult bending_test(const scene::Scene& s, const LabOptions& o) {
 }
 
 // ------------------------------------------------------------------------- floating strip
+namespace {
+
+// The floating strip's water: column buoyancy, no current or quadratic drag, and a linear drag on
+// the bottom face that damps the heave. Per column 0.3 x layers x 1.4 sqrt(k_column m), with
+// k_column = rho_w g V_cell / c per particle: a damping ratio ~0.2 per column, so that the strip
+// reaches its static deflection within the hold time. Measured on scenes/level_ice_cone.json
+// (4 layers): L_c +0.36 % at this factor 0.3; +2.5 % at 0.1 (still ringing); +11 % at 1 and +32 % at
+// 3 (overdamped, still creeping at the end).
+void set_strip_water(EngineDef& d, const Lab& L, double h, double c, double rho_w, double g) {
+  const double D = L.D;
+  d.gravity = Vec3(0, 0, -g);
+  d.water.enabled = true;
+  d.water.level = 0.0;
+  d.water.density = rho_w;
+  d.water.model = BuoyancyModel::Column;
+  d.water.drag_coefficient = 0.0;
+  d.water.current = Vec3::Zero();
+  const double c_particle = 1.4 * std::sqrt(rho_w * g * hcp_cell_volume(D) / c * L.mass);
+  d.water.linear_drag_per_area = 0.3 * std::max(1.0, std::round(h / c)) * c_particle / (D * D * 0.5 * std::sqrt(3.0));
+}
+
+// Mean deflection z_ref - z_now per column of particles (bins of `bin` along x from xmin), up to
+// s = s_max: positions s and deflections w.
+void deflection_profile(const std::vector<Vec3>& centres, const std::vector<double>& z_ref,
+                        const std::vector<double>& z_now, double xmin, double bin, double s_max,
+                        std::vector<double>& sv, std::vector<double>& wv) {
+  std::map<long, std::pair<double, int>> bins;
+  for (std::size_t k = 0; k < centres.size(); ++k) {
+    const long b = std::lround((centres[k].x() - xmin) / bin);
+    auto& [sum, n] = bins[b];
+    sum += z_ref[k] - z_now[k];
+    ++n;
+  }
+  for (const auto& [b, sn] : bins) {
+    const double sx = b * bin;
+    if (sx > s_max) break;
+    sv.push_back(sx);
+    wv.push_back(sn.first / sn.second);
+  }
+}
+
+// The semi-infinite floating beam's end-loaded deflection w = e^(-lambda s) (A cos lambda s +
+// B sin lambda s) fitted to (s, w): for each lambda the best A, B by linear least squares, lambda
+// by golden-section search in [0.3, 3] lambda0. Returns lambda; *rms the fit's rms residual.
+double fit_beam_decay(const std::vector<double>& sv, const std::vector<double>& wv, double lambda0, double* rms_out) {
+  auto residual = [&](double lam, double* rms) {
+    Eigen::Matrix2d M = Eigen::Matrix2d::Zero();
+    Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
+    for (std::size_t k = 0; k < sv.size(); ++k) {
+      const double ex = std::exp(-lam * sv[k]);
+      const Eigen::Vector2d phi(ex * std::cos(lam * sv[k]), ex * std::sin(lam * sv[k]));
+      M += phi * phi.transpose();
+      rhs += phi * wv[k];
+    }
+    const Eigen::Vector2d ab = M.ldlt().solve(rhs);
+    double ss = 0;
+    for (std::size_t k = 0; k < sv.size(); ++k) {
+      const double ex = std::exp(-lam * sv[k]);
+      const double m = ab[0] * ex * std::cos(lam * sv[k]) + ab[1] * ex * std::sin(lam * sv[k]);
+      ss += (m - wv[k]) * (m - wv[k]);
+    }
+    if (rms) *rms = std::sqrt(ss / sv.size());
+    return ss;
+  };
+  double a = 0.3 * lambda0, b = 3.0 * lambda0;
+  const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
+  for (int it = 0; it < 80; ++it) {
+    const double x1 = b - gr * (b - a), x2 = a + gr * (b - a);
+    if (residual(x1, nullptr) < residual(x2, nullptr)) b = x2;
+    else a = x1;
+  }
+  const double lam = 0.5 * (a + b);
+  residual(lam, rms_out);
+  return lam;
+}
+
+}  // namespace
+
 StripResult strip_test(const scene::Scene& s, double poisson_ratio, const LabOptions& o) {
   const Lab L = lab_of(s);
   const double D = L.D, h = L.h, c = L.c;
@@ -302,21 +380,7 @@ StripResult strip_test(const scene::Scene& s, double poisson_ratio, const LabOpt
   const int rows = 6;
   const double W = rows * 0.5 * std::sqrt(3.0) * D;
   EngineDef d = lab_def(s, L, 0.3, false, r.softening);
-  d.gravity = Vec3(0, 0, -g);
-  d.water.enabled = true;
-  d.water.level = 0.0;
-  d.water.density = rho_w;
-  d.water.model = BuoyancyModel::Column;
-  d.water.drag_coefficient = 0.0;
-  d.water.current = Vec3::Zero();
-  // Heave damping: the water's linear drag acts on wetted faces only (water.h), here the strip's
-  // bottom face, D^2 sqrt(3)/2 per column. Per column 0.3 x layers x 1.4 sqrt(k_column m), with
-  // k_column = rho_w g V_cell / c per particle: a damping ratio ~0.2 per column, so that the strip
-  // reaches its static deflection within the hold time. Measured on scenes/level_ice_cone.json
-  // (4 layers): L_c +0.36 % at this factor 0.3; +2.5 % at 0.1 (still ringing); +11 % at 1 and +32 % at
-  // 3 (overdamped, still creeping at the end).
-  const double c_particle = 1.4 * std::sqrt(rho_w * g * hcp_cell_volume(D) / c * L.mass);
-  d.water.linear_drag_per_area = 0.3 * std::max(1.0, std::round(h / c)) * c_particle / (D * D * 0.5 * std::sqrt(3.0));
+  set_strip_water(d, L, h, c, rho_w, g);
   Engine e(d);
   const double draft = flotation_draft(h, L.rho, rho_w);
   Pose pose;
@@ -367,51 +431,12 @@ StripResult strip_test(const scene::Scene& s, double poisson_ratio, const LabOpt
   advance_to(t_end);
   e.on_step = nullptr;
   // Profile: mean deflection per column (bins of D/2 along x), fitted over s in [0, 3 L_c].
-  std::map<long, std::pair<double, int>> bins;
-  for (std::size_t k = 0; k < centres.size(); ++k) {
-    const double sx = centres[k].x() - xmin;
-    const long b = std::lround(sx / (0.5 * D));
-    auto& [sum, n] = bins[b];
-    sum += z_ref[k] - ps.x[ps.local(static_cast<GlobalId>(k))].z();
-    ++n;
-  }
   std::vector<double> sv, wv;
-  for (const auto& [b, sn] : bins) {
-    const double sx = b * 0.5 * D;
-    if (sx > 3.0 * Lc_expect) break;
-    sv.push_back(sx);
-    wv.push_back(sn.first / sn.second);
-  }
-  // For each lambda the best A, B are linear least squares; lambda by golden-section search.
-  auto residual = [&](double lam, double* rms) {
-    Eigen::Matrix2d M = Eigen::Matrix2d::Zero();
-    Eigen::Vector2d rhs = Eigen::Vector2d::Zero();
-    for (std::size_t k = 0; k < sv.size(); ++k) {
-      const double ex = std::exp(-lam * sv[k]);
-      const Eigen::Vector2d phi(ex * std::cos(lam * sv[k]), ex * std::sin(lam * sv[k]));
-      M += phi * phi.transpose();
-      rhs += phi * wv[k];
-    }
-    const Eigen::Vector2d ab = M.ldlt().solve(rhs);
-    double ss = 0;
-    for (std::size_t k = 0; k < sv.size(); ++k) {
-      const double ex = std::exp(-lam * sv[k]);
-      const double m = ab[0] * ex * std::cos(lam * sv[k]) + ab[1] * ex * std::sin(lam * sv[k]);
-      ss += (m - wv[k]) * (m - wv[k]);
-    }
-    if (rms) *rms = std::sqrt(ss / sv.size());
-    return ss;
-  };
-  double a = 0.3 * lambda0, b = 3.0 * lambda0;
-  const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
-  for (int it = 0; it < 80; ++it) {
-    const double x1 = b - gr * (b - a), x2 = a + gr * (b - a);
-    if (residual(x1, nullptr) < residual(x2, nullptr)) b = x2;
-    else a = x1;
-  }
-  const double lam = 0.5 * (a + b);
+  std::vector<double> z_now(centres.size());
+  for (std::size_t k = 0; k < centres.size(); ++k) z_now[k] = ps.x[ps.local(static_cast<GlobalId>(k))].z();
+  deflection_profile(centres, z_ref, z_now, xmin, 0.5 * D, 3.0 * Lc_expect, sv, wv);
   double rms = 0;
-  residual(lam, &rms);
+  const double lam = fit_beam_decay(sv, wv, lambda0, &rms);
   double wmax = 0;
   for (double w : wv) wmax = std::max(wmax, std::abs(w));
   r.fit_rms = rms / std::max(wmax, 1e-300);
