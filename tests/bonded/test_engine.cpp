@@ -470,6 +470,22 @@ TEST(Engine, RemovedBondsLeaveTheirPairToContact) {
   EXPECT_LT((v0[1] + v1[1]).norm(), 1e-9 * v1[1].norm());
 }
 
+namespace {
+
+// The squeezed pair of the crushed-bond tests: two spheres whose centres are 0.7 r closer than
+// touching (bonded there, stress free, when `bonded`), the second sliding past at `vb`.
+void add_squeezed_pair(Engine& e, const test::Ice& ice, const Vec3& vb, bool bonded = true) {
+  const double r = 0.5 * ice.D;
+  auto a = test::sphere_at(ice, Vec3(0, 0, 0));
+  auto b = test::sphere_at(ice, Vec3(2 * r - 0.7 * r, 0, 0));
+  b.v = vb;
+  e.add_particle(a);
+  e.add_particle(b);
+  if (bonded) e.add_bond(0, 1, BondKind::Lattice);
+}
+
+}  // namespace
+
 TEST(Engine, BlowUpAfterABondBrokeSqueezedNamesTheCrushedBond) {
   // Two spheres bonded where they overlap by 0.7 of the radius (stress free there), sliding past
   // each other at 1 m/s: the bond breaks in shear in the first step (tau_c = 1 Pa) and the contact
@@ -490,17 +506,11 @@ TEST(Engine, BlowUpAfterABondBrokeSqueezedNamesTheCrushedBond) {
     EngineDef dv = d;
     if (variant == 2) {
       Engine probe(d);
-      probe.add_particle(test::sphere_at(ice, Vec3(0, 0, 0)));
-      probe.add_particle(test::sphere_at(ice, Vec3(2 * r - 0.7 * r, 0, 0)));
+      add_squeezed_pair(probe, ice, Vec3::Zero(), false);
       dv.dt = 0.95 * probe.critical_time_step();
     }
     Engine e(dv);
-    auto a = test::sphere_at(ice, Vec3(0, 0, 0));
-    auto b = test::sphere_at(ice, Vec3(2 * r - 0.7 * r, 0, 0));
-    b.v = Vec3(0, 1.0, 0);
-    e.add_particle(a);
-    e.add_particle(b);
-    if (bonded) e.add_bond(0, 1, BondKind::Lattice);
+    add_squeezed_pair(e, ice, Vec3(0, 1.0, 0), bonded);
     std::string msg;
     try {
       e.run(5);
@@ -573,14 +583,7 @@ TEST(Engine, ABondBrokenSqueezedLeavesAContactWithAPermanentSet) {
   EngineDef d = test::no_field_def(ice);
   const double r = 0.5 * ice.D, m = ice.sphere_mass();
   d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), r, 1e9, 1.0, 0.0, 1, 1);
-  auto make = [&](Engine& e) {
-    auto a = test::sphere_at(ice, Vec3(0, 0, 0));
-    auto b = test::sphere_at(ice, Vec3(2 * r - 0.7 * r, 0, 0));
-    b.v = Vec3(0, 1.0, 0);
-    e.add_particle(a);
-    e.add_particle(b);
-    e.add_bond(0, 1, BondKind::Lattice);
-  };
+  auto make = [&](Engine& e) { add_squeezed_pair(e, ice, Vec3(0, 1.0, 0)); };
   Engine e(d);
   make(e);
   e.run(2);
@@ -638,12 +641,7 @@ TEST(Engine, TheCrushedSetDepthIsItsOwnFigureNotTheOverlapLimits) {
     d.limits.max_overlap_ratio = limit;
     d.crushed_set_depth = depth;
     Engine e(d);
-    auto a = test::sphere_at(ice, Vec3(0, 0, 0));
-    auto b = test::sphere_at(ice, Vec3(2 * r - 0.7 * r, 0, 0));
-    b.v = Vec3(0, 1.0, 0);
-    e.add_particle(a);
-    e.add_particle(b);
-    e.add_bond(0, 1, BondKind::Lattice);
+    add_squeezed_pair(e, ice, Vec3(0, 1.0, 0));
     e.run(2);
     EXPECT_EQ(e.crushed_pair_count(), 1u);
     return e.crushed_set_of(0, 1) / r;
@@ -668,12 +666,7 @@ TEST(Engine, ACrushedContactWithFrictionConservesMomentumAndAngularMomentum) {
   const double r = 0.5 * ice.D;
   d.bond[0] = ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), r, 1e9, 1.0, 0.0, 1, 1);
   Engine e(d);
-  auto a = test::sphere_at(ice, Vec3(0, 0, 0));
-  auto b = test::sphere_at(ice, Vec3(2 * r - 0.7 * r, 0, 0));
-  b.v = Vec3(0, 1.0, 0.2);
-  e.add_particle(a);
-  e.add_particle(b);
-  e.add_bond(0, 1, BondKind::Lattice);
+  add_squeezed_pair(e, ice, Vec3(0, 1.0, 0.2));
   const Vec3 p0 = e.linear_momentum(), l0 = e.angular_momentum();
   const double ke0 = e.energy().kinetic_translational + e.energy().kinetic_rotational;
   e.run(2);
