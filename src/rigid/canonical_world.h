@@ -70,6 +70,31 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
   /// islands are then neither built nor used, and its deactivation timers are not run.
   bool managed_sleep = false;
 
+  /// Takes every joint and body out of the world in O(joints + bodies + pairs), for the world's
+  /// destruction: Bullet's removeConstraint and removeRigidBody each search an array (and each
+  /// body's removal scans every overlapping pair), which made tearing down a paper-size ridge
+  /// (78,000 joints, 29,000 blocks) quadratic, ~5 s. The bodies and constraints stay owned by the
+  /// caller, to be deleted after this.
+  void release_all() {
+    for (int k = 0; k < m_constraints.size(); ++k) {
+      btTypedConstraint* c = m_constraints[k];
+      c->getRigidBodyA().removeConstraintRef(c);
+      c->getRigidBodyB().removeConstraintRef(c);
+    }
+    m_constraints.clear();
+    // Every overlapping pair at once (each with its manifold), so that no removal below scans any.
+    struct RemoveAll : btOverlapCallback {
+      bool processOverlap(btBroadphasePair&) override { return true; }
+    } all;
+    getBroadphase()->getOverlappingPairCache()->processAllOverlappingPairs(&all, getDispatcher());
+    m_nonStaticRigidBodies.clear();  // removeRigidBody below then finds nothing to search
+    for (int k = getNumCollisionObjects() - 1; k >= 0; --k) {
+      btCollisionObject* o = getCollisionObjectArray()[k];
+      if (btRigidBody* b = btRigidBody::upcast(o)) removeRigidBody(b);
+      else removeCollisionObject(o);
+    }
+  }
+
   void calculateSimulationIslands() override {
     if (!managed_sleep) btDiscreteDynamicsWorld::calculateSimulationIslands();
   }

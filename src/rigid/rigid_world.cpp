@@ -455,11 +455,7 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
 
 RigidWorld::~RigidWorld() {
   Impl& m = *impl_;
-  for (auto& j : m.joints)
-    if (j->constraint) m.world->removeConstraint(j->constraint.get());
-  for (auto& b : m.blocks)
-    if (b.alive) m.world->removeRigidBody(b.body.get());
-  for (auto& ms : m.meshes) m.world->removeRigidBody(ms->body.get());
+  m.world->release_all();  // every joint and body out of the world, in linear time
   m.meshes.clear();
   m.joints.clear();
   m.blocks.clear();
