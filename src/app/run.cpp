@@ -42,8 +42,13 @@ void print_warnings(const std::vector<std::string>& warnings, std::FILE* err) {
   for (const auto& w : warnings) std::fprintf(err, "warning: %s\n", w.c_str());
 }
 
-io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm, bool fsync) {
+/// `restart_changes`: the stability limits the restarts that led here moved (Restart::changes),
+/// kept as the root attribute "restart_changes" when there are any.
+io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm, bool fsync,
+                              const std::vector<std::string>& restart_changes) {
   io::RunFileMeta meta;
+  if (!restart_changes.empty())
+    meta.root_attributes.emplace_back("restart_changes", nlohmann::json(restart_changes).dump());
   meta.write_to_partial = true;  // an existing result is replaced only by a run that closed its file
   meta.fsync_on_flush = fsync;
   meta.scene_text = s.json.dump(2);
@@ -331,13 +336,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       !opt.output.empty() ? opt.output : restart ? io::strip_partial(restart->run_file) : s.output;
   check_run_output(out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
   const std::string ckpt_path = io::checkpoint_path(out_path);
-  io::RunFileMeta meta = run_file_meta(s, comm, opt.fsync);
   const std::vector<std::string> changes = restart ? restart->changes : std::vector<std::string>{};
-  if (!changes.empty()) {
-    for (std::size_t k = restart->carried_changes; k < changes.size(); ++k)
-      std::fprintf(progress, "hybridsim: restart changes %s\n", changes[k].c_str());
-    meta.root_attributes.emplace_back("restart_changes", nlohmann::json(changes).dump());
-  }
+  for (std::size_t k = restart ? restart->carried_changes : 0; k < changes.size(); ++k)
+    std::fprintf(progress, "hybridsim: restart changes %s\n", changes[k].c_str());
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
   sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit};
@@ -363,7 +364,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   }
   sim::Simulation& sim = *built;
   print_warnings(sim.warnings(), progress);
-  io::RunFile file(out_path, std::move(meta));
+  io::RunFile file(out_path, run_file_meta(s, comm, opt.fsync, changes));
   sim::Recorders rec(sim, s, comm);
   rec.declare(file);
   const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);
