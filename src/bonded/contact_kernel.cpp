@@ -89,6 +89,8 @@ namespace hs::bonded {
 namespace {
 
 constexpr int kBlock = 64;
+constexpr int kLanes = 8;  // the widest vector (AVX-512 doubles); kBlock is a multiple of it
+static_assert(kBlock % kLanes == 0);
 
 struct Block {
   alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock];
@@ -238,36 +240,48 @@ void Engine::pair_kernel_impl(const Tag& law) {
   Vec3 fcur = Vec3::Zero(), tcur = Vec3::Zero();
   for (std::size_t p0 = 0; p0 < np; p0 += kBlock) {
     const int len = static_cast<int>(std::min<std::size_t>(kBlock, np - p0));
-    // 1a. which pairs touch (no branches): touching pairs to b.pair, the others to apart
+    // 1a. which pairs touch (no branches): touching pairs to b.pair with their separation and
+    // radii (written at lane m whether or not the pair touches; a pair apart is overwritten by
+    // the next), the others to apart
     int m = 0, z = 0;
     for (int q = 0; q < len; ++q) {
       const ContactPair& p = pairs[p0 + q];
       const std::uint32_t i = p.i, j = p.j;
-      const double rs = r[i] + r[j];
-      const bool touch = (x[j] - x[i]).squaredNorm() < rs * rs;
+      const double ri = r[i], rj = r[j];
+      const double rs = ri + rj;
+      const Vec3 d = x[j] - x[i];
+      const bool touch = d.squaredNorm() < rs * rs;
       // (a pair apart whose spring is already zero needs no store: most were apart before)
       const bool spring = (p.xi.x() != 0.0) | (p.xi.y() != 0.0) | (p.xi.z() != 0.0);
+      b.dx[m] = d.x(); b.dy[m] = d.y(); b.dz[m] = d.z();
+      b.ri[m] = ri; b.rj[m] = rj;
       b.pair[m] = static_cast<std::uint32_t>(p0 + q);
       m += touch ? 1 : 0;
       apart[z] = static_cast<std::uint32_t>(p0 + q);
       z += (!touch && spring) ? 1 : 0;
     }
     for (int k = 0; k < z; ++k) pairs[apart[k]].xi.setZero();  // contact over: the spring goes
-    // 1b. the touching pairs' state
+    // 1b. the touching pairs' motion and springs
     for (int k = 0; k < m; ++k) {
       const ContactPair& p = pairs[b.pair[k]];
       const std::uint32_t i = p.i, j = p.j;
-      const Vec3 d = x[j] - x[i];
-      b.dx[k] = d.x(); b.dy[k] = d.y(); b.dz[k] = d.z();
-      b.ri[k] = r[i]; b.rj[k] = r[j]; b.smeff[k] = smeff[b.pair[k]];
+      b.smeff[k] = smeff[b.pair[k]];
       const Vec3 dv = v[j] - v[i];
       b.dvx[k] = dv.x(); b.dvy[k] = dv.y(); b.dvz[k] = dv.z();
       b.wix[k] = w[i].x(); b.wiy[k] = w[i].y(); b.wiz[k] = w[i].z();
       b.wjx[k] = w[j].x(); b.wjy[k] = w[j].y(); b.wjz[k] = w[j].z();
       b.xix[k] = p.xi.x(); b.xiy[k] = p.xi.y(); b.xiz[k] = p.xi.z();
     }
+    // 1c. the lanes up to the next multiple of kLanes compute an idle pair (two immovable
+    // particles 1 m apart: no force; their other inputs are whatever earlier blocks left there,
+    // and nothing of these lanes is scattered), so that the law never runs its scalar remainder
+    const int mpad = (m + kLanes - 1) / kLanes * kLanes;
+    for (int k = m; k < mpad; ++k) {
+      b.dx[k] = 1.0; b.dy[k] = 0.0; b.dz[k] = 0.0;
+      b.smeff[k] = 0.0;
+    }
     // 2. the law, all lanes alike
-    block_law(b, m, law, dt);
+    block_law(b, mpad, law, dt);
     // 3. scatter in list order
     for (int k = 0; k < m; ++k) {
       ContactPair& p = pairs[b.pair[k]];
@@ -287,13 +301,21 @@ void Engine::pair_kernel_impl(const Tag& law) {
       fcur -= F;
       tcur -= Vec3(b.tix[k], b.tiy[k], b.tiz[k]);
       t[j] += Vec3(b.tjx[k], b.tjy[k], b.tjz[k]);
-      const double rmin = std::min(b.ri[k], b.rj[k]);
-      if (b.delta[k] > worst * rmin) {  // overlap ratio delta / rmin > worst
-        worst = b.delta[k] / rmin;
-        wi = i;
-        wj = j;
-      }
     }
+    // 4. the deepest overlap so far, in list order: the block is scanned only when one of its
+    // lanes beats it (rarely, once the first blocks have set it)
+    int deeper = 0;
+#pragma omp simd reduction(| : deeper)
+    for (int k = 0; k < m; ++k) deeper |= b.delta[k] > worst * std::min(b.ri[k], b.rj[k]) ? 1 : 0;
+    if (deeper != 0)
+      for (int k = 0; k < m; ++k) {
+        const double rmin = std::min(b.ri[k], b.rj[k]);
+        if (b.delta[k] > worst * rmin) {  // overlap ratio delta / rmin > worst
+          worst = b.delta[k] / rmin;
+          wi = pairs[b.pair[k]].i;
+          wj = pairs[b.pair[k]].j;
+        }
+      }
   }
   if (cur != kNoParticle) {
     f[cur] = fcur;
