@@ -209,8 +209,10 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
                  "warning: bench hybrid: the ridge file '%s' was not settled when its generation stopped "
                  "(ridge.settle.max_time %.4g s reached: %zu of %zu blocks asleep, kinetic energy %.3g J per block, "
                  "criterion %.3g J): its blocks still creep and wake the ridge, so the awake and moving counts "
-                 "and the rigid share measure that as well as far sleep; generate it with a longer "
-                 "ridge.settle.max_time\n",
+                 "and the rigid share measure that as well as far sleep. A longer ridge.settle.max_time "
+                 "need not help (the paper-size ridge's settle energy wanders between 0.009 and 0.08 J per "
+                 "block at the settle step of 1/30 s); a smaller ridge.settle.dt leaves it closer to rest, "
+                 "at more cost (docs/rigid.md, \"Far sleep\")\n",
                  path.c_str(), ridge.def.settle.max_time, ridge.stats.final_asleep_blocks, ridge.blocks.size(),
                  ridge.stats.final_kinetic_energy_per_block, ridge.def.settle.kinetic_energy_per_block);
   j["steps"] = steps;
