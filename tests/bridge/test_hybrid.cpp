@@ -10,6 +10,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <tuple>
 
 using namespace hs;
 using namespace hs::bonded;
@@ -177,6 +178,46 @@ TEST(HybridStep, AllAtStartConvertsEveryBlockAndKeepsTheirMass) {
   EXPECT_EQ(h.report().particles_created, e.particles().size());
   std::printf("[ hybrid ] all_at_start: 2 blocks -> %zu particles, %llu bonds, mass %.6f kg (blocks %.6f kg)\n",
               e.particles().size(), static_cast<unsigned long long>(h.report().bonds_created), M, expected);
+}
+
+// A block reaching past a plane wall of the particles (rigid blocks do not meet those walls: a
+// keel under the rest scene's end wall does) converts into the sites on the wall's side only:
+// none starts behind the wall or touching it (before, all_at_start on ridge_keel_8m_rest.json
+// stopped at its first step with a particle 16 radii deep in the end wall), and the kept sites
+// carry the block's whole mass.
+TEST(HybridStep, AConvertedBlockLeavesNoParticleBehindAPlaneWall) {
+  auto convert = [](bool wall) {
+    Engine e(engine_def(false));
+    e.set_dt(1e-4);
+    if (wall) {
+      PlaneWall w;
+      w.name = "end";
+      w.point = Vec3::Zero();
+      w.normal = Vec3::UnitX();
+      e.add_wall(w);
+    }
+    HybridDef d = dry_def();
+    d.mode = ConversionMode::AllAtStart;
+    HybridSystem h(e, d, {block(Vec3(1.0, 0.75, 0.5), Vec3(0.25, 0, 0))});  // x from -0.75 to 1.25 m
+    double xmin = INFINITY, M = 0.0;
+    for (std::size_t i = 0; i < e.particles().size(); ++i) {
+      xmin = std::min(xmin, e.particles().x[i].x());
+      M += e.particles().mass[i];
+    }
+    return std::make_tuple(xmin, M, e.particles().size(), h.report().sites_dropped);
+  };
+  const auto [xmin, M, n, dropped] = convert(true);
+  const auto [xmin_free, M_free, n_free, dropped_free] = convert(false);
+  const double expected = kRhoI * 8.0 * (1.0 * 0.75 * 0.5);
+  std::printf("[ hybrid ] block through a wall at x = 0: %zu particles (%zu sites dropped), nearest centre x = %.4f m "
+              "(r = %.4f m); without the wall %zu particles, nearest x = %.4f m\n",
+              n, static_cast<std::size_t>(dropped), xmin, 0.5 * kD, n_free, xmin_free);
+  EXPECT_GE(xmin, 0.5 * kD);  // no particle behind or touching the wall
+  EXPECT_NEAR(M, expected, 1e-12 * expected);
+  EXPECT_GT(dropped, 0u);
+  // The control: the same block without the wall fills its whole box, past x = 0.
+  EXPECT_LT(xmin_free, -0.5);
+  EXPECT_GT(n_free, n);
 }
 
 namespace {
