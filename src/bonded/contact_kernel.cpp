@@ -273,8 +273,9 @@ void Engine::pair_kernel_impl(const Tag& law) {
       b.xix[k] = p.xi.x(); b.xiy[k] = p.xi.y(); b.xiz[k] = p.xi.z();
     }
     // 1c. the lanes up to the next multiple of kLanes compute an idle pair (two immovable
-    // particles 1 m apart: no force; their other inputs are whatever earlier blocks left there,
-    // and nothing of these lanes is scattered), so that the law never runs its scalar remainder
+    // particles, smeff = 0: no force, whatever their other inputs, which are what earlier blocks
+    // left there; nothing of these lanes is scattered), so that the law never runs its scalar
+    // remainder
     const int mpad = (m + kLanes - 1) / kLanes * kLanes;
     for (int k = m; k < mpad; ++k) {
       b.dx[k] = 1.0; b.dy[k] = 0.0; b.dz[k] = 0.0;

@@ -132,7 +132,7 @@ std::vector<Vec3> free_sites(bonded::Engine& engine, const std::vector<Vec3>& x,
       kept.push_back(x[i]);
   }
   if (kept.empty())
-    throw InputError("block", "every lattice site of the block overlaps existing particles; nothing to convert");
+    throw InputError("block", "every lattice site of the block overlaps existing particles, another block or a plane wall; nothing to convert");
   return kept;
 }
 

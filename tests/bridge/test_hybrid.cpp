@@ -213,6 +213,7 @@ TEST(HybridStep, AConvertedBlockLeavesNoParticleBehindAPlaneWall) {
               "(r = %.4f m); without the wall %zu particles, nearest x = %.4f m\n",
               n, static_cast<std::size_t>(dropped), xmin, 0.5 * kD, n_free, xmin_free);
   EXPECT_GE(xmin, 0.5 * kD);  // no particle behind or touching the wall
+  EXPECT_LT(xmin, 1.5 * kD);  // and no more dropped than that (measured 0.1857 m: the first row kept)
   EXPECT_NEAR(M, expected, 1e-12 * expected);
   EXPECT_GT(dropped, 0u);
   // The control: the same block without the wall fills its whole box, past x = 0.
