@@ -118,7 +118,17 @@ Lattice block_lattice(const Vec3& he, const bonded::Pose& pose, double D) {
   return lat;
 }
 
-/// Step 3: the sites that overlap no existing particle (on any rank) and that `blocked` leaves free.
+/// Whether a sphere of radius r at `site` lies behind or touches one of the engine's plane walls.
+/// Rigid blocks do not meet those walls and may reach past them (a keel under an end or symmetry
+/// wall); a particle there would start metres deep in the wall.
+bool behind_a_wall(const bonded::Engine& engine, const Vec3& site, double r) {
+  for (const bonded::PlaneWall& w : engine.walls())
+    if ((site - w.point).dot(w.normal) < r) return true;
+  return false;
+}
+
+/// Step 3: the sites that overlap no existing particle (on any rank), lie clear of the engine's
+/// plane walls and that `blocked` leaves free.
 std::vector<Vec3> free_sites(bonded::Engine& engine, const std::vector<Vec3>& x, double D, const SiteBlocked& blocked,
                              std::size_t& dropped) {
   const std::vector<char> drop = engine.overlapping_sites(x, std::vector<double>(x.size(), 0.5 * D));
@@ -126,7 +136,7 @@ std::vector<Vec3> free_sites(bonded::Engine& engine, const std::vector<Vec3>& x,
   std::vector<Vec3> kept;
   kept.reserve(x.size());
   for (std::size_t i = 0; i < x.size(); ++i) {
-    if (drop[i] || (blocked && blocked(x[i], 0.5 * D)))
+    if (drop[i] || behind_a_wall(engine, x[i], 0.5 * D) || (blocked && blocked(x[i], 0.5 * D)))
       ++dropped;
     else
       kept.push_back(x[i]);

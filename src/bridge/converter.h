@@ -10,8 +10,9 @@
 //   2. Centre of mass: the lattice is translated by s = c - (mean of the centres) so its
 //      centroid sits on the block centre c (|s| < D always for a box; larger is refused).
 //   3. Overlap: a new centre closer than r_j + D/2 to an existing particle j (i.e. in contact
-//      overlap with it) is dropped, so no contact spring starts compressed; the count is
-//      reported. Nothing is shifted after this step.
+//      overlap with it), or closer than D/2 to one of the engine's plane walls or behind it, is
+//      dropped, so no contact spring starts compressed; the count is reported. Nothing is
+//      shifted after this step.
 //   4. Mass and buoyancy: each kept particle gets m = M/n and V_b = V_block/n (n kept): the
 //      lattice weighs exactly M and displaces exactly V_block (docs/bridge.md, vs rho_i V_cell).
 //   5. Momentum: with c' the kept particles' centre of mass and r_i = x_i - c',

@@ -508,17 +508,14 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
   b.mass = world_->mass(id);
   // Sites that would start inside (or touching) another rigid block are dropped too: the
   // block-block contact was Bullet's, with its own small penetrations, and a particle there
-  // would be thrown out by the particle-block contact spring. So are sites behind or touching a
-  // plane wall of the particles: rigid blocks do not meet those walls and may reach past them
-  // (a keel under a symmetry or end wall), and a particle there would start metres deep in it.
+  // would be thrown out by the particle-block contact spring. (Sites behind the particles' plane
+  // walls are the converter's own check, as are those overlapping particles.)
   std::vector<rigid::BlockId> near;
   const double reach = b.half_extents.norm() + m.def.ice.diameter;
   for (const rigid::BlockId o : m.ids)
     if (!(o == id) && (world_->position(o) - b.pose.position).norm() < reach + world_->half_extents(o).norm())
       near.push_back(o);
   const SiteBlocked inside_other = [&](const Vec3& site, double r) {
-    for (const bonded::PlaneWall& w : engine_.walls())
-      if ((site - w.point).dot(w.normal) < r) return true;
     for (const rigid::BlockId o : near) {
       const Mat3 R = world_->orientation(o).toRotationMatrix();
       const Vec3 l = R.transpose() * (site - world_->position(o));
