@@ -300,8 +300,10 @@ std::function<bool(const bridge::RelaxProgress&)> relaxation_poll(const scene::S
       std::fprintf(progress,
                    "relax%s t = %.4g s of at most %g s: fastest block %.3g m/s at (%.4g %.4g %.4g), particle %.3g m/s "
                    "at (%.4g %.4g %.4g), block KE %.3g J, below %g m/s for %.3g s, lattice bonds broken %llu\n",
-                   p.stage == 2 ? " (jointed stage)" : "", p.time,
-                   s.blocks.relax.max_time + (p.stage == 2 ? s.blocks.relax.jointed_time : 0.0), p.max_block_speed,
+                   p.stage == 2 ? " (jointed stage)" : p.stage == 3 ? " (lattice stage)" : "", p.time,
+                   s.blocks.relax.max_time + (p.stage >= 2 ? s.blocks.relax.jointed_time : 0.0) +
+                       (p.stage == 3 ? s.blocks.relax.lattice_time : 0.0),
+                   p.max_block_speed,
                    p.fastest_block.x(), p.fastest_block.y(), p.fastest_block.z(), p.max_particle_speed,
                    p.fastest_particle.x(), p.fastest_particle.y(), p.fastest_particle.z(), p.block_kinetic_energy,
                    s.blocks.relax.speed, p.quiet_time, static_cast<unsigned long long>(p.lattice_bonds_broken));

@@ -47,6 +47,11 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
                    "it began), %s; %llu joints loaded beyond their strength at its end\n",
                    x.jointed_time, static_cast<unsigned long long>(x.jointed_joints), x.unjointed_max_block_speed,
                    x.jointed_converged ? "at rest" : "NOT at rest", static_cast<unsigned long long>(x.joints_overloaded));
+    if (x.ran && x.lattice_time > 0.0)
+      std::fprintf(progress,
+                   "hybridsim: of it, %.4g s with every block converted at its relaxed pose (fastest block %.3g m/s "
+                   "when the rigid stages ended), %s\n",
+                   x.lattice_time, x.rigid_max_block_speed, x.lattice_converged ? "at rest" : "NOT at rest");
   }
   if (comm.parallel()) {
     const auto& g = e.decomposition().dims();

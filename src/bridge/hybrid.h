@@ -114,6 +114,12 @@ struct RelaxDef {
   /// keel's static one); the block-particle bonds are made at the freeze as without it
   /// (docs/bridge.md, "Relaxation").
   double jointed_time = 0.0;
+  /// s, all_at_start only: > 0 relaxes the rigid blocks first, as in hybrid mode (both stages
+  /// above), then puts the particle sheet back as it was built, converts every block at its
+  /// relaxed pose and lets the lattices relax for at most this long (a third stage, the freeze
+  /// bonds the conversion made held back until the freeze); 0 converts before the relaxation
+  /// (docs/bridge.md, "Relaxation", "all_at_start").
+  double lattice_time = 0.0;
 };
 
 /// Where a relaxation is (every rigid step, for progress lines).
@@ -128,7 +134,9 @@ struct RelaxProgress {
   /// Lattice bonds broken since the relaxation began (a sheet too weak for the keel's load breaks
   /// here, and each break kicks its particles: docs/bridge.md, "Relaxation").
   std::uint64_t lattice_bonds_broken = 0;
-  int stage = 1;  ///< 1: without joints; 2: the jointed stage (RelaxDef::jointed_time)
+  /// 1: without joints; 2: the jointed stage (RelaxDef::jointed_time); 3: the lattice stage
+  /// (RelaxDef::lattice_time)
+  int stage = 1;
 };
 /// Called every rigid step of the relaxation; return true to stop it there (a SIGINT).
 using RelaxProgressFn = std::function<bool(const RelaxProgress&)>;
@@ -151,8 +159,15 @@ struct RelaxReport {
   std::uint64_t jointed_joints = 0;     ///< joints between blocks it held
   std::uint64_t joints_overloaded = 0;  ///< of those, loaded beyond their strength at its end
   double unjointed_max_block_speed = 0.0;  ///< m/s: fastest block when it began
-  /// At rest at the freeze: the jointed stage's verdict when it ran, else the first stage's.
-  bool at_rest() const { return jointed_time > 0.0 ? jointed_converged != 0 : converged != 0; }
+  // The lattice stage (RelaxDef::lattice_time, all_at_start); time above includes it.
+  double lattice_time = 0.0;            ///< s of it run (0: none)
+  std::uint64_t lattice_converged = 0;  ///< 1: at rest before lattice_time
+  double rigid_max_block_speed = 0.0;   ///< m/s: fastest block when the rigid stages ended
+  /// At rest at the freeze: the verdict of the last stage that ran.
+  bool at_rest() const {
+    if (lattice_time > 0.0) return lattice_converged != 0;
+    return jointed_time > 0.0 ? jointed_converged != 0 : converged != 0;
+  }
   RelaxDef def;                 ///< the settings
 };
 
@@ -306,10 +321,14 @@ class HybridSystem {
   /// The relaxation's jointed stage (RelaxDef::jointed_time): the world saved for checkpoints,
   /// the block joints made, unbreakable until the freeze.
   void begin_jointed_stage();
-  /// all_at_start with a relaxation: the joints made at the blocks' starting poses, every block
+  /// all_at_start with a relaxation: the joints made at the blocks' poses now, every block
   /// converted (their joints becoming freeze bonds as at any conversion), then those bonds and
   /// the joints left between blocks that stay rigid held back for freeze() (relax.cpp).
   void convert_before_relaxation();
+  /// The lattice stage's start (RelaxDef::lattice_time): the rigid stages' joints removed, the
+  /// sheet put back as built, both clocks to 0, the world saved for restarts, then
+  /// convert_before_relaxation() at the relaxed poses.
+  void convert_after_rigid_relaxation(const StateArchive& sheet_as_built, const std::vector<JointInit>& ridge_joints);
   void convert_all_at_start();
   bonded::Engine& engine_;
   std::unique_ptr<rigid::RigidWorld> world_;

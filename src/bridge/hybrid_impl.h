@@ -52,6 +52,9 @@ struct HybridSystem::Impl {
   /// The rigid world when the jointed stage began (its joints are made from these poses again
   /// when a checkpoint restores the relaxation).
   StateArchive unjointed_world;
+  /// The rigid world the lattice stage converted (RelaxDef::lattice_time): a restart converts it
+  /// again against the sheet as built.
+  StateArchive preconvert_world;
   RelaxReport relax;
   /// Per block k: 1 when ref[k] has v = w = 0 and the contact and bonds already hold its pose
   /// (extrapolation would set the same values again); cleared whenever ref[k] may change.

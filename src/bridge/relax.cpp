@@ -57,9 +57,17 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     mean = n ? sum / static_cast<double>(n) : 0.0;
   };
   // all_at_start: the lattices relax with the sheet (their freeze bonds held back until the
-  // freeze), not the rigid blocks they came from. After z0: the sheet's figures stay the sheet's.
-  if (m.def.mode == ConversionMode::AllAtStart) convert_before_relaxation();
-  const std::uint64_t broken0 = engine_.stats().bonds_broken;
+  // freeze), not the rigid blocks they came from: converted now, or (lattice_time > 0) after the
+  // rigid blocks have relaxed as in hybrid mode. After z0: the sheet's figures stay the sheet's.
+  const bool lattice_stage = m.def.mode == ConversionMode::AllAtStart && def.lattice_time > 0.0;
+  if (m.def.mode == ConversionMode::AllAtStart && !lattice_stage) convert_before_relaxation();
+  // The lattice stage converts against the sheet as built (what a restart rebuilds), and the
+  // ridge's joints are made at the relaxed poses by that conversion: both kept from now.
+  StateArchive sheet_as_built;
+  if (lattice_stage) engine_.save_state(sheet_as_built, "");
+  const std::vector<JointInit> ridge_joints = m.pending_joints;
+  std::uint64_t broken0 = engine_.stats().bonds_broken;
+  std::uint64_t broken_before = 0;  // lattice bonds broken before the sheet was put back
   const std::uint64_t k = report_.steps_per_rigid_step;
   const double h = report_.rigid_dt, dt = engine_.dt();
   const double fp = std::exp(-def.damping * dt), fb = std::exp(-def.damping * h);
@@ -102,7 +110,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
         }
       P.max_particle_speed = std::sqrt(v2);
       P.block_kinetic_energy = world_->kinetic_energy();
-      P.lattice_bonds_broken = engine_.stats().bonds_broken - broken0;
+      P.lattice_bonds_broken = broken_before + (engine_.stats().bonds_broken - broken0);
       P.quiet_time = P.max_block_speed < def.speed && P.max_particle_speed < def.speed ? P.quiet_time + h : 0.0;
       double mean = 0.0, max_abs = 0.0;
       sheet_dz(mean, max_abs);
@@ -127,12 +135,22 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     R.joints_overloaded = world_->overloaded_joint_count();
     world_->set_joints_breakable(true);
   }
+  if (!R.stopped && lattice_stage) {
+    R.rigid_max_block_speed = P.max_block_speed;
+    const double t2 = P.time;
+    broken_before = P.lattice_bonds_broken;
+    convert_after_rigid_relaxation(sheet_as_built, ridge_joints);
+    broken0 = engine_.stats().bonds_broken;
+    P.stage = 3;
+    R.lattice_converged = run_stage(def.lattice_time) ? 1 : 0;
+    R.lattice_time = P.time - t2;
+  }
   R.time = P.time;
   R.max_block_speed = P.max_block_speed;
   R.max_particle_speed = P.max_particle_speed;
   R.block_kinetic_energy = P.block_kinetic_energy;
   sheet_dz(R.sheet_mean_dz, R.sheet_max_dz);
-  R.lattice_bonds_broken = engine_.stats().bonds_broken - broken0;
+  R.lattice_bonds_broken = broken_before + (engine_.stats().bonds_broken - broken0);
   if (R.stopped) return R;
   m.relaxed_world.entries.clear();
   world_->save_state(m.relaxed_world, "");
@@ -156,15 +174,27 @@ void HybridSystem::restore_relaxation(const StateArchive& a, const std::string& 
     throw std::runtime_error("hybrid checkpoint: the scene relaxes its blocks but the checkpoint holds no relaxed "
                              "state (written by a version without the relaxation?)");
   m.relax = a.get_value<RelaxReport>(p + "relax_report");
-  // The same conversion as before the original relaxation (same blocks, same steps): the world
-  // then holds the blocks the saved one did; the engine's particles are restored afterwards.
-  if (m.def.mode == ConversionMode::AllAtStart) convert_before_relaxation();
   const auto read = [&](const std::string& prefix, StateArchive& out) {
     out.entries.clear();
     for (const auto& [key, value] : a.entries)
       if (key.compare(0, prefix.size(), prefix) == 0) out.entries.emplace(key.substr(prefix.size()), value);
   };
-  if (m.relax.jointed_time > 0.0) {  // the joints of the jointed stage, made from the same poses as then
+  // The same conversion as in the original relaxation (same blocks, same poses, the sheet as
+  // built): the world then holds the blocks the saved one did; the engine's particles are
+  // restored afterwards.
+  if (m.relax.lattice_time > 0.0) {
+    read(p + "preconvert/", m.preconvert_world);
+    if (m.preconvert_world.entries.empty())
+      throw std::runtime_error("hybrid checkpoint: a lattice stage ran but the rigid world it converted is missing");
+    world_->load_state(m.preconvert_world, "");
+    m.take_reference(*world_);
+    convert_before_relaxation();
+  } else if (m.def.mode == ConversionMode::AllAtStart) {
+    convert_before_relaxation();
+  }
+  if (m.relax.jointed_time > 0.0 && m.relax.lattice_time == 0.0) {
+    // the joints of the jointed stage, made from the same poses as then (a lattice stage removed
+    // them before its conversion)
     read(p + "unjointed/", m.unjointed_world);
     world_->load_state(m.unjointed_world, "");
     make_pending_block_joints();
@@ -228,6 +258,25 @@ void HybridSystem::make_pending_joints() {
                                                     pending_point(j.block, j.anchor),
                                                     pending_direction(j.block, j.normal), j.area);
   m.pending_ice_joints.clear();
+}
+
+void HybridSystem::convert_after_rigid_relaxation(const StateArchive& sheet_as_built,
+                                                  const std::vector<JointInit>& ridge_joints) {
+  Impl& m = *impl_;
+  // The rigid stages' joints go (the jointed stage's); the conversion makes the ridge's joints
+  // again at the relaxed poses, as it would have at the starting ones.
+  for (const rigid::BlockId id : world_->blocks())
+    for (const rigid::JointId j : world_->joints_of(id)) world_->remove_joint(j);
+  m.pending_joints = ridge_joints;
+  // The sheet as built (its relaxed shape differs by under a millimetre on the keel scenes,
+  // docs/bridge.md): a restart converts against the same particles. Both clocks from 0, so that
+  // the blocks' kinematic reference and the engine's time agree again.
+  engine_.load_state(sheet_as_built, "");
+  world_->reset_clock();
+  m.take_reference(*world_);
+  m.preconvert_world.entries.clear();
+  world_->save_state(m.preconvert_world, "");
+  convert_before_relaxation();
 }
 
 void HybridSystem::convert_before_relaxation() {

@@ -48,7 +48,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "loose_blocks", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "fixed_friction_directions", "rigid_dt", "conversion", "region",
         "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep"}},
-      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time"}},
+      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time"}},
       {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
@@ -511,6 +511,9 @@ void read_relax(const JsonObject& o, BlocksDef::Relax& r) {
                        "numerical velocity damping during the relaxation only (a set-up device), e.g. 0.5");
   r.jointed_time = x.number("jointed_time", r.jointed_time, Range::non_negative(), "s",
                             "a second stage with the joints between blocks held unbreakable, e.g. 2; 0 = none");
+  r.lattice_time = x.number("lattice_time", r.lattice_time, Range::non_negative(), "s",
+                            "all_at_start: the rigid blocks relax first, then convert and their lattices relax for "
+                            "at most this long, e.g. 2; 0 = convert before the relaxation");
 }
 
 /// Rigid ice blocks and their conversion.

@@ -183,6 +183,9 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
       {"jointed_joints", static_cast<double>(r.jointed_joints)},
       {"joints_overloaded", static_cast<double>(r.joints_overloaded)},
       {"unjointed_max_block_speed", r.unjointed_max_block_speed},
+      {"lattice_time", r.lattice_time},
+      {"lattice_converged", static_cast<double>(r.lattice_converged)},
+      {"rigid_max_block_speed", r.rigid_max_block_speed},
   };
   for (const auto& [name, value] : figures) f.set_attribute(g, name, value);
   f.set_attribute(g, "description",
@@ -193,7 +196,9 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
                               "vertical displacement at its end (m: mean, largest |dz|, largest |mean| during it), "
                               "lattice bonds broken in it; the jointed stage (blocks.relax.jointed_time): its time (s, "
                               "in time), converged (1: at rest), the joints it held unbreakable and those loaded "
-                              "beyond their strength at its end, the fastest block when it began (m/s); the run's "
+                              "beyond their strength at its end, the fastest block when it began (m/s); the lattice stage "
+                              "(blocks.relax.lattice_time, all_at_start after rigid stages): its time (s, in time), "
+                              "converged (1: at rest), the fastest block when the rigid stages ended (m/s); the run's "
                               "t = 0 is its end"));
 }
 

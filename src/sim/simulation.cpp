@@ -74,19 +74,25 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
       }
     } else {
       const auto& r = s.blocks.relax;
-      const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping, r.jointed_time}, opt.relax_progress);
+      const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping, r.jointed_time, r.lattice_time},
+                                                              opt.relax_progress);
       if (rep.stopped) throw RelaxationStopped(rep.time);
-      // Not at rest at the freeze: neither stage ended at rest (a first stage that ends at
-      // max_time is what the jointed stage is for).
-      const bool jointed = rep.jointed_time > 0.0;
+      // Not at rest at the freeze: the last stage did not end at rest (a first stage that ends
+      // at max_time is what the jointed stage is for).
+      const bool jointed = rep.jointed_time > 0.0, lattice = rep.lattice_time > 0.0;
       if (!rep.at_rest()) {
         std::ostringstream w;
         w << "/blocks/relax: the blocks and the sheet were not at rest after "
-          << (jointed ? "the jointed stage's jointed_time = " : "max_time = ") << (jointed ? r.jointed_time : r.max_time)
+          << (lattice   ? "the lattice stage's lattice_time = "
+              : jointed ? "the jointed stage's jointed_time = "
+                        : "max_time = ")
+          << (lattice ? r.lattice_time : jointed ? r.jointed_time : r.max_time)
           << " s of relaxation (fastest block " << rep.max_block_speed << " m/s, fastest particle "
           << rep.max_particle_speed << " m/s; at rest means below speed = " << r.speed << " m/s for hold = " << r.hold
           << " s); the joints and bonds were frozen there and the run starts from that state. Raise "
-          << (jointed ? "/blocks/relax/jointed_time" : "/blocks/relax/max_time, set /blocks/relax/jointed_time (e.g. 3)")
+          << (lattice   ? "/blocks/relax/lattice_time"
+              : jointed ? "/blocks/relax/jointed_time"
+                        : "/blocks/relax/max_time, set /blocks/relax/jointed_time (e.g. 3)")
           << " or set /blocks/relax/damping (e.g. 0.5)";
         sim.blocks_.warnings.push_back(w.str());
       }
