@@ -318,6 +318,9 @@ class BlocksRecorder : public Recorder {
     id_count_ = f.add_int_series("/series/blocks/count", 1, "1", "rigid blocks (not yet converted)");
     id_conv_ = f.add_int_series("/series/blocks/conversions", 1, "1", "blocks converted into particles so far");
     id_joints_ = f.add_int_series("/series/blocks/joints_broken", 1, "1", "freeze joints between blocks broken");
+    id_awake_ = f.add_int_series("/series/blocks/awake", 1, "1",
+                                 "dynamic blocks stepped by the rigid world (all of them unless blocks.far_sleep puts "
+                                 "still ones far from the action to sleep; docs/rigid.md, \"Far sleep\")");
   }
   void after_step(const Simulation& sim) override {
     if (has_structure_) force_.sum += sim.hybrid().structure_force();
@@ -333,10 +336,12 @@ class BlocksRecorder : public Recorder {
     const auto nblk = static_cast<std::int64_t>(h.world()->block_count());
     const auto nconv = static_cast<std::int64_t>(h.report().conversions);
     const auto nj = static_cast<std::int64_t>(h.world()->broken_joint_count());
+    const auto nawake = static_cast<std::int64_t>(h.world()->awake_count());
     f.append(id_ke_, &ke);
     f.append(id_count_, &nblk);
     f.append(id_conv_, &nconv);
     f.append(id_joints_, &nj);
+    f.append(id_awake_, &nawake);
     n_ = 0;
   }
   void save(StateArchive& a, const std::string& p) const override {
@@ -352,7 +357,7 @@ class BlocksRecorder : public Recorder {
   bool has_structure_;
   Mean3 force_;
   std::uint64_t n_ = 0;
-  int id_force_ = -1, id_ke_ = -1, id_count_ = -1, id_conv_ = -1, id_joints_ = -1;
+  int id_force_ = -1, id_ke_ = -1, id_count_ = -1, id_conv_ = -1, id_joints_ = -1, id_awake_ = -1;
 };
 
 // ---- /series/energy/...: the particles' energy terms
