@@ -325,10 +325,10 @@ class HybridSystem {
   /// converted (their joints becoming freeze bonds as at any conversion), then those bonds and
   /// the joints left between blocks that stay rigid held back for freeze() (relax.cpp).
   void convert_before_relaxation();
-  /// The lattice stage's start (RelaxDef::lattice_time): the rigid stages' joints removed, the
-  /// sheet put back as built, both clocks to 0, the world saved for restarts, then
-  /// convert_before_relaxation() at the relaxed poses.
-  void convert_after_rigid_relaxation(const StateArchive& sheet_as_built, const std::vector<JointInit>& ridge_joints);
+  /// The lattice stage's start (RelaxDef::lattice_time): the rigid stages' joints removed, both
+  /// clocks to 0, the engine and the world saved for restarts, then convert_before_relaxation()
+  /// at the relaxed poses against the relaxed sheet.
+  void convert_after_rigid_relaxation(const std::vector<JointInit>& ridge_joints);
   void convert_all_at_start();
   bonded::Engine& engine_;
   std::unique_ptr<rigid::RigidWorld> world_;

@@ -55,6 +55,8 @@ struct HybridSystem::Impl {
   /// The rigid world the lattice stage converted (RelaxDef::lattice_time): a restart converts it
   /// again against the sheet as built.
   StateArchive preconvert_world;
+  /// The engine (the relaxed sheet) that conversion met, for the same restart.
+  StateArchive preconvert_engine;
   RelaxReport relax;
   /// Per block k: 1 when ref[k] has v = w = 0 and the contact and bonds already hold its pose
   /// (extrapolation would set the same values again); cleared whenever ref[k] may change.

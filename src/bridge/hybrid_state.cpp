@@ -137,6 +137,7 @@ void HybridSystem::save_state(StateArchive& a, const std::string& p) const {
     for (const auto& [key, value] : m.relaxed_world.entries) a.put_bytes(p + "relaxed/" + key, value);
     for (const auto& [key, value] : m.unjointed_world.entries) a.put_bytes(p + "unjointed/" + key, value);
     for (const auto& [key, value] : m.preconvert_world.entries) a.put_bytes(p + "preconvert/" + key, value);
+    for (const auto& [key, value] : m.preconvert_engine.entries) a.put_bytes(p + "preconvert_engine/" + key, value);
   }
 }
 

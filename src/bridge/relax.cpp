@@ -61,10 +61,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
   // rigid blocks have relaxed as in hybrid mode. After z0: the sheet's figures stay the sheet's.
   const bool lattice_stage = m.def.mode == ConversionMode::AllAtStart && def.lattice_time > 0.0;
   if (m.def.mode == ConversionMode::AllAtStart && !lattice_stage) convert_before_relaxation();
-  // The lattice stage converts against the sheet as built (what a restart rebuilds), and the
-  // ridge's joints are made at the relaxed poses by that conversion: both kept from now.
-  StateArchive sheet_as_built;
-  if (lattice_stage) engine_.save_state(sheet_as_built, "");
+  // The lattice stage's conversion makes the ridge's joints at the relaxed poses: kept from now.
   const std::vector<JointInit> ridge_joints = m.pending_joints;
   std::uint64_t broken0 = engine_.stats().bonds_broken;
   std::uint64_t broken_before = 0;  // lattice bonds broken before the sheet was put back
@@ -139,7 +136,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     R.rigid_max_block_speed = P.max_block_speed;
     const double t2 = P.time;
     broken_before = P.lattice_bonds_broken;
-    convert_after_rigid_relaxation(sheet_as_built, ridge_joints);
+    convert_after_rigid_relaxation(ridge_joints);
     broken0 = engine_.stats().bonds_broken;
     P.stage = 3;
     R.lattice_converged = run_stage(def.lattice_time) ? 1 : 0;
@@ -184,8 +181,10 @@ void HybridSystem::restore_relaxation(const StateArchive& a, const std::string& 
   // restored afterwards.
   if (m.relax.lattice_time > 0.0) {
     read(p + "preconvert/", m.preconvert_world);
-    if (m.preconvert_world.entries.empty())
-      throw std::runtime_error("hybrid checkpoint: a lattice stage ran but the rigid world it converted is missing");
+    read(p + "preconvert_engine/", m.preconvert_engine);
+    if (m.preconvert_world.entries.empty() || m.preconvert_engine.entries.empty())
+      throw std::runtime_error("hybrid checkpoint: a lattice stage ran but the state it converted is missing");
+    engine_.load_state(m.preconvert_engine, "");
     world_->load_state(m.preconvert_world, "");
     m.take_reference(*world_);
     convert_before_relaxation();
@@ -260,20 +259,20 @@ void HybridSystem::make_pending_joints() {
   m.pending_ice_joints.clear();
 }
 
-void HybridSystem::convert_after_rigid_relaxation(const StateArchive& sheet_as_built,
-                                                  const std::vector<JointInit>& ridge_joints) {
+void HybridSystem::convert_after_rigid_relaxation(const std::vector<JointInit>& ridge_joints) {
   Impl& m = *impl_;
   // The rigid stages' joints go (the jointed stage's); the conversion makes the ridge's joints
   // again at the relaxed poses, as it would have at the starting ones.
   for (const rigid::BlockId id : world_->blocks())
     for (const rigid::JointId j : world_->joints_of(id)) world_->remove_joint(j);
   m.pending_joints = ridge_joints;
-  // The sheet as built (its relaxed shape differs by under a millimetre on the keel scenes,
-  // docs/bridge.md): a restart converts against the same particles. Both clocks from 0, so that
-  // the blocks' kinematic reference and the engine's time agree again.
-  engine_.load_state(sheet_as_built, "");
+  // Both clocks from 0 (the stage's steps count from there), then the relaxed sheet and world
+  // saved: a restart loads both and converts exactly as here (restore_relaxation).
+  engine_.reset_clock();
   world_->reset_clock();
   m.take_reference(*world_);
+  m.preconvert_engine.entries.clear();
+  engine_.save_state(m.preconvert_engine, "");
   m.preconvert_world.entries.clear();
   world_->save_state(m.preconvert_world, "");
   convert_before_relaxation();

@@ -194,13 +194,13 @@ TEST(RidgeRest, AllAtStartStaysAtRest) {
 
 TEST(RidgeRest, AllAtStartConvertingAfterARigidRelaxationStaysAtRest) {
   // blocks.relax.lattice_time (docs/bridge.md, "Relaxation", all_at_start): the rigid blocks
-  // relax first as in hybrid mode, the sheet is put back as built, every block converts at its
-  // relaxed pose and the lattices relax (a third stage) before the freeze. With damping 3 /s (as
-  // the keel scenes): rigid stages 4.7 s, lattice stage 18.1 s (at rest), then after 4 s no
-  // joint, freeze bond or lattice bond broken, fastest block 1.5e-3 m/s, particle 5.3e-5 m/s,
-  // sheet mean dz 3.6e-6 m. Control below: the lattice stage cut to 0.01 s (the conversion at
-  // the relaxed poses with no lattice relaxation) breaks 2 joints, 44 freeze bonds and 59
-  // lattice bonds, particle 0.37 m/s, mean dz 3.2 cm.
+  // relax first as in hybrid mode, every block converts at its relaxed pose against the relaxed
+  // sheet and the lattices relax (a third stage) before the freeze. With damping 3 /s (as the
+  // keel scenes): rigid stages 4.7 s, lattice stage 27.6 s (at rest), then after 4 s no joint,
+  // freeze bond or lattice bond broken, fastest block 2.3e-3 m/s, particle 7.8e-5 m/s, sheet
+  // mean dz 4.9e-6 m. Control below: the lattice stage cut to 0.01 s (the conversion at the
+  // relaxed poses with no lattice relaxation) breaks 2 joints, 41 freeze bonds and 54 lattice
+  // bonds, particle 0.41 m/s, mean dz 3.1 cm.
   const std::string extra = " --set blocks.relax.damping=3 --set time.checkpoint_interval=2.5";
   expect_at_rest(run_mode("all_at_start", extra + " --set blocks.relax.lattice_time=30", "rest_lattice.h5"),
                  "all_at_start, lattice stage", true);
@@ -210,7 +210,7 @@ TEST(RidgeRest, AllAtStartConvertingAfterARigidRelaxationStaysAtRest) {
   EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "at_rest"), 1.0);
   EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "lattice_bonds_broken"), 0.0);
   expect_converted_before_t0(a);
-  // The restart converts the saved pre-conversion world against the sheet as built, loads the
+  // The restart loads the saved pre-conversion world and sheet, converts them again, loads the
   // relaxed world and continues bit for bit.
   const auto b = hybridsim("run rest.json --set blocks.conversion=all_at_start" + extra +
                            " --set blocks.relax.lattice_time=30 --restart rest_lattice.h5 -o rest_lattice_b.h5");
