@@ -115,10 +115,10 @@ struct RelaxDef {
   /// (docs/bridge.md, "Relaxation").
   double jointed_time = 0.0;
   /// s, all_at_start only: > 0 relaxes the rigid blocks first, as in hybrid mode (both stages
-  /// above), then puts the particle sheet back as it was built, converts every block at its
-  /// relaxed pose and lets the lattices relax for at most this long (a third stage, the freeze
-  /// bonds the conversion made held back until the freeze); 0 converts before the relaxation
-  /// (docs/bridge.md, "Relaxation", "all_at_start").
+  /// above), then converts every block at its relaxed pose against the relaxed sheet and lets
+  /// the lattices relax for at most this long (a third stage, the freeze bonds the conversion
+  /// made held back until the freeze); 0 converts before the relaxation (docs/bridge.md,
+  /// "Relaxation", "Converting after a rigid relaxation").
   double lattice_time = 0.0;
 };
 

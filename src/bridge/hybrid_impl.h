@@ -53,7 +53,7 @@ struct HybridSystem::Impl {
   /// when a checkpoint restores the relaxation).
   StateArchive unjointed_world;
   /// The rigid world the lattice stage converted (RelaxDef::lattice_time): a restart converts it
-  /// again against the sheet as built.
+  /// again against preconvert_engine.
   StateArchive preconvert_world;
   /// The engine (the relaxed sheet) that conversion met, for the same restart.
   StateArchive preconvert_engine;

@@ -8,6 +8,7 @@
 #include "common/state_archive.h"
 
 #include <stdexcept>
+#include <type_traits>
 
 namespace hs::bridge {
 
@@ -132,6 +133,8 @@ void HybridSystem::save_state(StateArchive& a, const std::string& p) const {
   a.put_value(p + "t_ref", m.t_ref);
   a.put(p + "coupler_linear", m.coupler.linear());
   a.put(p + "coupler_angular", m.coupler.angular());
+  // (RelaxReport goes in as bytes: a checkpoint of another layout is refused by its size)
+  static_assert(std::is_trivially_copyable_v<RelaxReport>);
   if (m.relax.ran) {  // the relaxed world, for restore_relaxation (relax.cpp)
     a.put_value(p + "relax_report", m.relax);
     for (const auto& [key, value] : m.relaxed_world.entries) a.put_bytes(p + "relaxed/" + key, value);

@@ -64,7 +64,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
   // The lattice stage's conversion makes the ridge's joints at the relaxed poses: kept from now.
   const std::vector<JointInit> ridge_joints = m.pending_joints;
   std::uint64_t broken0 = engine_.stats().bonds_broken;
-  std::uint64_t broken_before = 0;  // lattice bonds broken before the sheet was put back
+  std::uint64_t broken_before = 0;  // lattice bonds broken before the lattice stage's clock reset
   const std::uint64_t k = report_.steps_per_rigid_step;
   const double h = report_.rigid_dt, dt = engine_.dt();
   const double fp = std::exp(-def.damping * dt), fb = std::exp(-def.damping * h);
@@ -176,14 +176,24 @@ void HybridSystem::restore_relaxation(const StateArchive& a, const std::string& 
     for (const auto& [key, value] : a.entries)
       if (key.compare(0, prefix.size(), prefix) == 0) out.entries.emplace(key.substr(prefix.size()), value);
   };
-  // The same conversion as in the original relaxation (same blocks, same poses, the sheet as
-  // built): the world then holds the blocks the saved one did; the engine's particles are
-  // restored afterwards.
+  // The same conversion as in the original relaxation (same blocks, same poses, the same sheet):
+  // the world then holds the blocks the saved one did; the engine's particles are restored
+  // afterwards.
   if (m.relax.lattice_time > 0.0) {
     read(p + "preconvert/", m.preconvert_world);
     read(p + "preconvert_engine/", m.preconvert_engine);
     if (m.preconvert_world.entries.empty() || m.preconvert_engine.entries.empty())
       throw std::runtime_error("hybrid checkpoint: a lattice stage ran but the state it converted is missing");
+    if (m.relax.jointed_time > 0.0) {
+      // The jointed stage's joints were made and then removed before the conversion: made again
+      // here, so that the world has the same joint slots as the one saved (the saved free slots
+      // and generations then take over).
+      const std::vector<JointInit> ridge_joints = m.pending_joints;
+      read(p + "unjointed/", m.unjointed_world);
+      world_->load_state(m.unjointed_world, "");
+      make_pending_block_joints();
+      m.pending_joints = ridge_joints;
+    }
     engine_.load_state(m.preconvert_engine, "");
     world_->load_state(m.preconvert_world, "");
     m.take_reference(*world_);

@@ -96,7 +96,10 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
           << " or set /blocks/relax/damping (e.g. 0.5)";
         sim.blocks_.warnings.push_back(w.str());
       }
-      if (jointed && rep.joints_overloaded) {
+      if (r.lattice_time > 0.0 && def.mode != bridge::ConversionMode::AllAtStart)
+        sim.blocks_.warnings.push_back("/blocks/relax/lattice_time: set, but only all_at_start converts before the "
+                                       "run; ignored in this conversion mode");
+      if (jointed && !lattice && rep.joints_overloaded) {  // (a lattice stage removed those joints)
         std::ostringstream w;
         w << "/blocks/relax: " << rep.joints_overloaded << " of the " << rep.jointed_joints
           << " joints held in the jointed stage carry more than their strength at its end and will break at "
