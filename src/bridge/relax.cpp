@@ -17,6 +17,27 @@ double block_speed(const rigid::RigidWorld& w, rigid::BlockId id) {
   return w.velocity(id).norm() + w.angular_velocity(id).norm() * w.half_extents(id).norm();
 }
 
+/// The fastest block and particle now (speeds and where they are) into P.
+void fastest(const rigid::RigidWorld& w, const std::vector<rigid::BlockId>& ids, const bonded::ParticleStore& ps,
+             RelaxProgress& P) {
+  P.max_block_speed = 0.0;
+  for (const rigid::BlockId id : ids)
+    if (!w.fixed(id)) {
+      const double v = block_speed(w, id);
+      if (v > P.max_block_speed) {
+        P.max_block_speed = v;
+        P.fastest_block = w.position(id);
+      }
+    }
+  double v2 = 0.0;
+  for (std::size_t i = 0; i < ps.owned(); ++i)
+    if (ps.v[i].squaredNorm() > v2) {
+      v2 = ps.v[i].squaredNorm();
+      P.fastest_particle = ps.x[i];
+    }
+  P.max_particle_speed = std::sqrt(v2);
+}
+
 }  // namespace
 
 bool HybridSystem::freeze_pending() const { return impl_->freeze_pending; }
@@ -90,22 +111,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
         m.take_reference(*world_);
       }
       P.time = static_cast<double>(R.rigid_steps) * h;
-      P.max_block_speed = 0.0;
-      for (const rigid::BlockId id : m.ids)
-        if (!world_->fixed(id)) {
-          const double v = block_speed(*world_, id);
-          if (v > P.max_block_speed) {
-            P.max_block_speed = v;
-            P.fastest_block = world_->position(id);
-          }
-        }
-      double v2 = 0.0;
-      for (std::size_t i = 0; i < ps.owned(); ++i)
-        if (ps.v[i].squaredNorm() > v2) {
-          v2 = ps.v[i].squaredNorm();
-          P.fastest_particle = ps.x[i];
-        }
-      P.max_particle_speed = std::sqrt(v2);
+      fastest(*world_, m.ids, ps, P);
       P.block_kinetic_energy = world_->kinetic_energy();
       P.lattice_bonds_broken = broken_before + (engine_.stats().bonds_broken - broken0);
       P.quiet_time = P.max_block_speed < def.speed && P.max_particle_speed < def.speed ? P.quiet_time + h : 0.0;
