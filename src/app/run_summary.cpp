@@ -50,8 +50,11 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
     if (x.ran && x.lattice_time > 0.0)
       std::fprintf(progress,
                    "hybridsim: of it, %.4g s with every block converted at its relaxed pose (fastest block %.3g m/s "
-                   "when the rigid stages ended), %s\n",
-                   x.lattice_time, x.rigid_max_block_speed, x.lattice_converged ? "at rest" : "NOT at rest");
+                   "when the rigid stages ended), %s; %llu blocks made %llu particles, %llu sites dropped for "
+                   "overlapping\n",
+                   x.lattice_time, x.rigid_max_block_speed, x.lattice_converged ? "at rest" : "NOT at rest",
+                   static_cast<unsigned long long>(r.conversions), static_cast<unsigned long long>(r.particles_created),
+                   static_cast<unsigned long long>(r.sites_dropped));
   }
   if (comm.parallel()) {
     const auto& g = e.decomposition().dims();

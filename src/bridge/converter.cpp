@@ -86,6 +86,16 @@ struct Lattice {
   Vec3 shift = Vec3::Zero();  ///< centroid move onto the block centre
 };
 
+/// The block's pose with its orientation normalised, as the lattice is cut.
+bonded::Pose lattice_pose(const BlockState& block) {
+  bonded::Pose pose = block.pose;
+  pose.orientation = block.pose.orientation.normalized();
+  return pose;
+}
+
+/// The box hcp_fill_box fills for a block of half extents he (step 1 below).
+Vec3 fill_half_extents(const Vec3& he, double D) { return {he.x() - 0.25 * D, he.y(), he.z()}; }
+
 Lattice block_lattice(const Vec3& he, const bonded::Pose& pose, double D) {
   // ---- 1. lattice in the block's frame ----
   // hcp_fill_box starts each row D/2 inside the -x face and keeps centres up to the +x face,
@@ -94,9 +104,8 @@ Lattice block_lattice(const Vec3& he, const bonded::Pose& pose, double D) {
   // D = 0.25 m). Insetting the fill box by D/4 in x leaves W/D sites in every row (W/D whole),
   // whose cells tile the block's width (docs/bridge.md).
   Lattice lat;
-  const Vec3 he_fill(he.x() - 0.25 * D, he.y(), he.z());
   std::vector<Vec3>& x = lat.sites;
-  x = bonded::hcp_fill_box(he_fill, pose, D);
+  x = bonded::hcp_fill_box(fill_half_extents(he, D), pose, D);
   if (x.empty())
     throw InputError("block/half_extents", "no HCP site fits in the block " + vec_str(2.0 * he) +
                                                " m with D = " + std::to_string(D) + " m");
@@ -242,6 +251,15 @@ InsertedMotion measure_inserted(bonded::Engine& engine, std::size_t n_old, const
 
 }  // namespace
 
+std::vector<Vec3> lattice_sites(const BlockState& block, double D) {
+  return block_lattice(block.half_extents, lattice_pose(block), D).sites;
+}
+
+bool lattice_fits(const Vec3& he, double D) {
+  if (!(D > 0.0) || !finite(he) || !(he.minCoeff() > 0.0) || 2.0 * he.minCoeff() < D) return false;
+  return !bonded::hcp_fill_box(fill_half_extents(he, D), bonded::Pose{}, D).empty();
+}
+
 ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, const IceMaterial& mat,
                                const SiteBlocked& blocked, const std::vector<Attachment>& attach) {
   using namespace hs::bonded;
@@ -252,8 +270,7 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   const Vec3& he = block.half_extents;
 
   // ---- 1, 2: the lattice; 3: the sites left free ----
-  Pose pose = block.pose;
-  pose.orientation = block.pose.orientation.normalized();
+  const Pose pose = lattice_pose(block);
   const Lattice lattice = block_lattice(he, pose, D);
   std::size_t dropped = 0;
   std::vector<Vec3> kept = free_sites(engine, lattice.sites, D, blocked, dropped);

@@ -101,6 +101,16 @@ struct ConversionReport {
 /// Inertia tensor (world frame, about its centre) of a solid box of mass M, kg m^2.
 Mat3 box_inertia_world(const Vec3& half_extents, const Quat& orientation, double mass);
 
+/// Whether convert_block can make a lattice of a block of these half extents at diameter D: not
+/// thinner than one particle along any axis and at least one HCP site inside (the shape checks
+/// of convert_block, which refuses the block otherwise; overlaps are not considered).
+bool lattice_fits(const Vec3& half_extents, double D);
+
+/// The lattice sites convert_block starts from for `block` at diameter D (steps 1, 1b, 2 below:
+/// before any site is dropped for an overlap), bit for bit. Throws hs::InputError when
+/// !lattice_fits.
+std::vector<Vec3> lattice_sites(const BlockState& block, double D);
+
 /// Optional extra obstacle test for lattice sites: true drops the site (e.g. it would start inside
 /// another rigid block). Called with the site centre and the particle radius D/2; under MPI it
 /// must give the same answer on every rank (it sees replicated data, e.g. the rigid world).

@@ -21,6 +21,24 @@ using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) { return std::chrono::duration<double>(Clock::now() - t0).count(); }
 }  // namespace
 
+bool sphere_reaches_block(const rigid::RigidWorld& w, rigid::BlockId o, const Vec3& site, double r) {
+  const Mat3 R = w.orientation(o).toRotationMatrix();
+  const Vec3 l = R.transpose() * (site - w.position(o));
+  const Vec3 out = (l.cwiseAbs() - w.half_extents(o)).cwiseMax(0.0);
+  return out.norm() < r;  // inside, or closer than r to its surface
+}
+
+BlockState block_state(const rigid::RigidWorld& w, rigid::BlockId id) {
+  BlockState b;
+  b.half_extents = w.half_extents(id);
+  b.pose.position = w.position(id);
+  b.pose.orientation = w.orientation(id);
+  b.velocity = w.velocity(id);
+  b.angular_velocity = w.angular_velocity(id);
+  b.mass = w.mass(id);
+  return b;
+}
+
 ConversionMode conversion_mode_from_string(const std::string& s, const std::string& path) {
   if (s == "hybrid") return ConversionMode::Hybrid;
   if (s == "all_at_start") return ConversionMode::AllAtStart;
@@ -499,29 +517,21 @@ ConversionReport HybridSystem::convert(rigid::BlockId id) {
   // (after a rigid step: the world's own), so that bonds made below start stress free.
   m.bonds_broken_synced += m.bonds.sync_broken(engine_.comm());
   m.extrapolate(engine_.time());
-  BlockState b;
-  b.half_extents = world_->half_extents(id);
-  b.pose.position = world_->position(id);
-  b.pose.orientation = world_->orientation(id);
-  b.velocity = world_->velocity(id);
-  b.angular_velocity = world_->angular_velocity(id);
-  b.mass = world_->mass(id);
+  const BlockState b = block_state(*world_, id);
   // Sites that would start inside (or touching) another rigid block are dropped too: the
   // block-block contact was Bullet's, with its own small penetrations, and a particle there
   // would be thrown out by the particle-block contact spring. (Sites behind the particles' plane
-  // walls are the converter's own check, as are those overlapping particles.)
+  // walls are the converter's own check, as are those overlapping particles.) The lattice
+  // stage's batch tests only the blocks that stay rigid (Impl::batch_rigid).
   std::vector<rigid::BlockId> near;
   const double reach = b.half_extents.norm() + m.def.ice.diameter;
   for (const rigid::BlockId o : m.ids)
-    if (!(o == id) && (world_->position(o) - b.pose.position).norm() < reach + world_->half_extents(o).norm())
+    if (!(o == id) && (world_->position(o) - b.pose.position).norm() < reach + world_->half_extents(o).norm() &&
+        (m.batch_rigid.empty() || m.batch_rigid[o.index]))
       near.push_back(o);
   const SiteBlocked inside_other = [&](const Vec3& site, double r) {
-    for (const rigid::BlockId o : near) {
-      const Mat3 R = world_->orientation(o).toRotationMatrix();
-      const Vec3 l = R.transpose() * (site - world_->position(o));
-      const Vec3 out = (l.cwiseAbs() - world_->half_extents(o)).cwiseMax(0.0);
-      if (out.norm() < r) return true;  // inside, or closer than r to its surface
-    }
+    for (const rigid::BlockId o : near)
+      if (sphere_reaches_block(*world_, o, site, r)) return true;
     return false;
   };
   // Freeze bonds carry over (docs/bridge.md, "Conversion"): the block's bonds to particles

@@ -330,6 +330,9 @@ class HybridSystem {
   /// at the relaxed poses against the relaxed sheet.
   void convert_after_rigid_relaxation(const std::vector<JointInit>& ridge_joints);
   void convert_all_at_start();
+  /// Which blocks the lattice stage's batch leaves rigid (Impl::batch_rigid): the fixed ones,
+  /// those no lattice fits, and those whose every site the blocks before them would take.
+  std::vector<char> plan_lattice_batch() const;
   bonded::Engine& engine_;
   std::unique_ptr<rigid::RigidWorld> world_;
   HybridReport report_;

@@ -12,6 +12,12 @@
 
 namespace hs::bridge {
 
+/// Whether a sphere of radius r at `site` reaches block o: its centre inside the box or closer
+/// than r to its surface.
+bool sphere_reaches_block(const rigid::RigidWorld& w, rigid::BlockId o, const Vec3& site, double r);
+/// Block `id` of the world as the converter takes it.
+BlockState block_state(const rigid::RigidWorld& w, rigid::BlockId id);
+
 struct HybridSystem::Impl {
   HybridDef def;
   int mesh = -1;
@@ -46,6 +52,12 @@ struct HybridSystem::Impl {
   // before it, and the freeze couplings that the conversion made from the joints held back until
   // the freeze, which makes them again stress free.
   bool converted_before_relax = false;
+  /// Per world slot, while the lattice stage converts every block at once (RelaxDef::lattice_time;
+  /// empty otherwise): 1 for the blocks that stay rigid (plan_lattice_batch). A converted
+  /// block's sites are then tested against those blocks' boxes and against the particles of the
+  /// blocks converted before it, not against the boxes of the blocks still to come
+  /// (docs/bridge.md, "Converting after a rigid relaxation").
+  std::vector<char> batch_rigid;
   std::vector<bonded::Bond> held_bonds;             ///< particle-particle freeze bonds
   std::vector<BlockParticleBond> held_block_bonds;  ///< block-particle freeze bonds
   StateArchive relaxed_world;  ///< the rigid world at the end of the relaxation (checkpoints)

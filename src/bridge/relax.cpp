@@ -5,6 +5,10 @@
 #include "bridge/hybrid_impl.h"
 
 #include <cmath>
+#include <algorithm>
+#include <array>
+#include <cstdint>
+#include <map>
 #include <limits>
 #include <stdexcept>
 
@@ -294,6 +298,79 @@ void HybridSystem::convert_after_rigid_relaxation(const std::vector<JointInit>& 
   convert_before_relaxation();
 }
 
+std::vector<char> HybridSystem::plan_lattice_batch() const {
+  const Impl& m = *impl_;
+  const double D = m.def.ice.diameter, r = 0.5 * D;
+  const std::vector<rigid::BlockId> blocks = world_->blocks();
+  std::uint32_t slots = 0;
+  for (const rigid::BlockId id : blocks) slots = std::max(slots, id.index + 1);
+  std::vector<char> rigid(slots, 0);
+  std::vector<std::vector<Vec3>> sites(blocks.size());
+  std::vector<Vec3> all;
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    const rigid::BlockId id = blocks[k];
+    if (world_->fixed(id) || !lattice_fits(world_->half_extents(id), D)) {
+      rigid[id.index] = 1;
+      continue;
+    }
+    sites[k] = lattice_sites(block_state(*world_, id), D);
+    all.insert(all.end(), sites[k].begin(), sites[k].end());
+  }
+  // The sheet's particles and the walls take the same sites whatever the batch does.
+  const std::vector<char> sheet = engine_.overlapping_sites(all, std::vector<double>(all.size(), r));
+  std::vector<std::vector<char>> taken(blocks.size());
+  for (std::size_t k = 0, s = 0; k < blocks.size(); ++k) {
+    taken[k].assign(sites[k].size(), 0);
+    for (std::size_t i = 0; i < sites[k].size(); ++i, ++s) {
+      bool t = sheet[s] != 0;
+      for (const bonded::PlaneWall& w : engine_.walls()) t = t || (sites[k][i] - w.point).dot(w.normal) < r;
+      taken[k][i] = t;
+    }
+  }
+  // A dry run of the batch in its order (the world's): a block keeps the sites clear of the
+  // blocks that stay rigid and of the sites kept before it, as the converter will decide. A
+  // block left with none stays rigid, and the run starts again with it as an obstacle.
+  const auto cell = [D](const Vec3& p) { return (p / D).array().floor().cast<std::int64_t>().eval(); };
+  for (bool again = true; again;) {
+    again = false;
+    std::map<std::array<std::int64_t, 3>, std::vector<Vec3>> kept;  // by cell of size D
+    std::vector<rigid::BlockId> obstacles;
+    for (const rigid::BlockId o : blocks)
+      if (rigid[o.index]) obstacles.push_back(o);
+    for (std::size_t k = 0; k < blocks.size() && !again; ++k) {
+      const rigid::BlockId id = blocks[k];
+      if (rigid[id.index]) continue;
+      std::vector<Vec3> mine;
+      for (std::size_t i = 0; i < sites[k].size(); ++i) {
+        const Vec3& p = sites[k][i];
+        if (taken[k][i]) continue;
+        bool hit = false;
+        for (const rigid::BlockId o : obstacles)
+          hit = hit || sphere_reaches_block(*world_, o, p, r);
+        const auto c = cell(p);
+        for (int dx = -1; dx <= 1 && !hit; ++dx)
+          for (int dy = -1; dy <= 1 && !hit; ++dy)
+            for (int dz = -1; dz <= 1 && !hit; ++dz) {
+              const auto it = kept.find({c.x() + dx, c.y() + dy, c.z() + dz});
+              if (it != kept.end())
+                for (const Vec3& q : it->second)
+                  if ((q - p).norm() < r + r) hit = true;
+            }
+        if (!hit) mine.push_back(p);
+      }
+      if (mine.empty()) {
+        rigid[id.index] = 1;
+        again = true;
+      }
+      for (const Vec3& p : mine) {
+        const auto c = cell(p);
+        kept[{c.x(), c.y(), c.z()}].push_back(p);
+      }
+    }
+  }
+  return rigid;
+}
+
 void HybridSystem::convert_before_relaxation() {
   Impl& m = *impl_;
   if (m.converted_before_relax) return;
@@ -302,7 +379,9 @@ void HybridSystem::convert_before_relaxation() {
   // The joints as the ridge file gives them, at the blocks' poses now (moved clear of the
   // sheet): every conversion turns them into freeze bonds as in a run (HybridSystem::convert).
   make_pending_joints();
+  if (m.relax.def.lattice_time > 0.0) m.batch_rigid = plan_lattice_batch();
   convert_all_at_start();
+  m.batch_rigid.clear();
   // Held back until the freeze: the joints between blocks left rigid (refused by the converter;
   // made again from the ridge file's joints at the relaxed poses), the block-particle bonds, and
   // the particle-particle freeze bonds to the new particles (both ends' ids kept).

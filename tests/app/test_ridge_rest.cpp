@@ -196,13 +196,19 @@ TEST(RidgeRest, AllAtStartConvertingAfterARigidRelaxationStaysAtRest) {
   // blocks.relax.lattice_time (docs/bridge.md, "Relaxation", all_at_start): the rigid blocks
   // relax first as in hybrid mode, every block converts at its relaxed pose against the relaxed
   // sheet and the lattices relax (a third stage) before the freeze. With damping 3 /s and a
-  // jointed stage (as the keel scenes): rigid stages 4.7 + 1.0 s, lattice stage 27.5 s (at
-  // rest), then after 4 s no joint, freeze bond or lattice bond broken, fastest block 2.3e-3 m/s,
-  // particle 7.7e-5 m/s, sheet mean dz 4.9e-6 m. The restart below needs the jointed stage's
-  // joint slots made again before the saved world loads (without: "32 block slots, 39 joint
-  // slots ... saved, but the scene builds 32, 0"). Control below: the lattice stage cut to
-  // 0.01 s (the conversion at the relaxed poses with no lattice relaxation) breaks 2 joints, 40
-  // freeze bonds and 57 lattice bonds, particle 0.41 m/s, mean dz 3.0 cm.
+  // jointed stage (as the keel scenes): rigid stages 4.7 + 1.0 s, lattice stage 17.6 s (at
+  // rest), then after 4 s no joint, freeze bond or lattice bond broken, fastest block 6.2e-3 m/s,
+  // particle 3.5e-4 m/s, sheet mean dz 7.9e-6 m. The conversion tests a site against the boxes
+  // of the blocks that stay rigid and the particles of those converted before it, not the boxes
+  // of those still to come (HybridSystem::plan_lattice_batch): 31 conversions, 1 refused, 131
+  // particles, 117 sites dropped. Testing every box, as a conversion in a run does, dropped the
+  // face layer at every contact: 23 conversions, 9 refused (no site left), 94 particles, 94 sites
+  // dropped, lattice stage 27.5 s. The restart below needs the jointed stage's joint slots made
+  // again before the saved world loads (without: "32 block slots, 39 joint slots ... saved, but
+  // the scene builds 32, 0"). Control below: the lattice stage cut to
+  // 0.01 s (the conversion at the relaxed poses with no lattice relaxation) breaks 7 freeze bonds
+  // and 73 lattice bonds, particle 0.23 m/s, mean dz 3.4 cm (with every box tested: 2 joints, 40
+  // freeze bonds, 57 lattice bonds).
   const std::string extra =
       " --set blocks.relax.damping=3 --set blocks.relax.jointed_time=1 --set time.checkpoint_interval=2.5";
   expect_at_rest(run_mode("all_at_start", extra + " --set blocks.relax.lattice_time=30", "rest_lattice.h5"),
@@ -212,6 +218,8 @@ TEST(RidgeRest, AllAtStartConvertingAfterARigidRelaxationStaysAtRest) {
   EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "lattice_converged"), 1.0);
   EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "at_rest"), 1.0);
   EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "lattice_bonds_broken"), 0.0);
+  EXPECT_LE(read_attribute(a, "/analysis/hybrid", "conversions_refused"), 1.0) << "the batch's blocks lost their sites";
+  EXPECT_GE(read_attribute(a, "/analysis/hybrid", "conversions"), 31.0);
   expect_converted_before_t0(a);
   // The restart loads the saved pre-conversion world and sheet, converts them again, loads the
   // relaxed world and continues bit for bit.

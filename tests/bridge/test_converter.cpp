@@ -180,6 +180,29 @@ TEST(Converter, SameInputsGiveSameIdsAndState) {
   EXPECT_NEAR(ra.mass, 800.0, 0.0);
 }
 
+// lattice_sites and lattice_fits (the lattice stage's batch plans with them before converting,
+// HybridSystem::plan_lattice_batch): the sites are those convert_block inserts when nothing
+// overlaps, bit for bit, and lattice_fits says false exactly where convert_block refuses the shape.
+TEST(Converter, LatticeSitesAreTheSitesTheConversionMakes) {
+  Material mat;
+  Engine e(free_flight_def(mat));
+  BlockState b = free_flight_block();
+  b.pose.orientation.coeffs() *= 3.0;  // not normalised: both normalise alike
+  const std::vector<Vec3> sites = bridge::lattice_sites(b, mat.D);
+  const ConversionReport r = bridge::convert_block(e, b, ice_material(mat));
+  ASSERT_EQ(r.particles_dropped, 0u);
+  ASSERT_EQ(r.sites.size(), sites.size());
+  for (std::size_t k = 0; k < sites.size(); ++k) EXPECT_EQ(r.sites[k], sites[k]) << "site " << k;
+  EXPECT_TRUE(bridge::lattice_fits(b.half_extents, mat.D));
+  for (const Vec3& he : {Vec3(1.0, 0.75, 0.12), Vec3(0.124, 1.0, 1.0), Vec3(1.0, 1.0, -0.5)}) {
+    Engine f(free_flight_def(mat));
+    BlockState t = b;
+    t.half_extents = he;
+    EXPECT_FALSE(bridge::lattice_fits(he, mat.D)) << he.transpose();
+    EXPECT_THROW(bridge::convert_block(f, t, ice_material(mat)), InputError) << he.transpose();
+  }
+}
+
 TEST(Converter, BadInputIsRefusedWithAClearMessage) {
   Material mat;
   Engine e(engine_def(mat, 0.0, 1.0));
