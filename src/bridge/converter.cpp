@@ -127,14 +127,6 @@ Lattice block_lattice(const Vec3& he, const bonded::Pose& pose, double D) {
   return lat;
 }
 
-/// Whether a sphere of radius r at `site` lies behind or touches one of the engine's plane walls.
-/// Rigid blocks do not meet those walls and may reach past them (a keel under an end or symmetry
-/// wall); a particle there would start metres deep in the wall.
-bool behind_a_wall(const bonded::Engine& engine, const Vec3& site, double r) {
-  for (const bonded::PlaneWall& w : engine.walls())
-    if ((site - w.point).dot(w.normal) < r) return true;
-  return false;
-}
 
 /// Step 3: the sites that overlap no existing particle (on any rank), lie clear of the engine's
 /// plane walls and that `blocked` leaves free.
@@ -250,6 +242,15 @@ InsertedMotion measure_inserted(bonded::Engine& engine, std::size_t n_old, const
 }
 
 }  // namespace
+
+/// Whether a sphere of radius r at `site` lies behind or touches one of the engine's plane walls.
+/// Rigid blocks do not meet those walls and may reach past them (a keel under an end or symmetry
+/// wall); a particle there would start metres deep in the wall.
+bool behind_a_wall(const bonded::Engine& engine, const Vec3& site, double r) {
+  for (const bonded::PlaneWall& w : engine.walls())
+    if ((site - w.point).dot(w.normal) < r) return true;
+  return false;
+}
 
 std::vector<Vec3> lattice_sites(const BlockState& block, double D) {
   return block_lattice(block.half_extents, lattice_pose(block), D).sites;

@@ -106,6 +106,10 @@ Mat3 box_inertia_world(const Vec3& half_extents, const Quat& orientation, double
 /// of convert_block, which refuses the block otherwise; overlaps are not considered).
 bool lattice_fits(const Vec3& half_extents, double D);
 
+/// Whether a sphere of radius r at `site` lies behind or touches one of the engine's plane walls
+/// (convert_block drops such sites).
+bool behind_a_wall(const bonded::Engine& engine, const Vec3& site, double r);
+
 /// The lattice sites convert_block starts from for `block` at diameter D (steps 1, 1b, 2 below:
 /// before any site is dropped for an overlap), bit for bit. Throws hs::InputError when
 /// !lattice_fits.

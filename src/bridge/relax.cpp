@@ -321,11 +321,8 @@ std::vector<char> HybridSystem::plan_lattice_batch() const {
   std::vector<std::vector<char>> taken(blocks.size());
   for (std::size_t k = 0, s = 0; k < blocks.size(); ++k) {
     taken[k].assign(sites[k].size(), 0);
-    for (std::size_t i = 0; i < sites[k].size(); ++i, ++s) {
-      bool t = sheet[s] != 0;
-      for (const bonded::PlaneWall& w : engine_.walls()) t = t || (sites[k][i] - w.point).dot(w.normal) < r;
-      taken[k][i] = t;
-    }
+    for (std::size_t i = 0; i < sites[k].size(); ++i, ++s)
+      taken[k][i] = sheet[s] != 0 || behind_a_wall(engine_, sites[k][i], r);
   }
   // A dry run of the batch in its order (the world's): a block keeps the sites clear of the
   // blocks that stay rigid and of the sites kept before it, as the converter will decide. A
