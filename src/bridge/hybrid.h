@@ -120,6 +120,8 @@ struct RelaxDef {
   /// made held back until the freeze); 0 converts before the relaxation (docs/bridge.md,
   /// "Relaxation", "Converting after a rigid relaxation").
   double lattice_time = 0.0;
+  /// 1/s: the lattice stage's damping (as `damping` above); < 0 (default): `damping`.
+  double lattice_damping = -1.0;
 };
 
 /// Where a relaxation is (every rigid step, for progress lines).

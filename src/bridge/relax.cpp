@@ -92,7 +92,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
   std::uint64_t broken_before = 0;  // lattice bonds broken before the lattice stage's clock reset
   const std::uint64_t k = report_.steps_per_rigid_step;
   const double h = report_.rigid_dt, dt = engine_.dt();
-  const double fp = std::exp(-def.damping * dt), fb = std::exp(-def.damping * h);
+  double damping = def.damping, fp = std::exp(-damping * dt), fb = std::exp(-damping * h);
   RelaxProgress P;
   // Up to `duration` s more: true when at rest (the speeds below def.speed for def.hold s).
   const auto run_stage = [&](double duration) {
@@ -102,14 +102,14 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
       for (std::uint64_t s = 0; s < k; ++s) {
         step();
         ++R.steps;
-        if (def.damping > 0.0)
+        if (damping > 0.0)
           for (std::size_t i = 0; i < ps.owned(); ++i) {
             ps.v[i] *= fp;
             ps.omega[i] *= fp;
           }
       }
       ++R.rigid_steps;
-      if (def.damping > 0.0) {
+      if (damping > 0.0) {
         for (const rigid::BlockId id : m.ids)
           if (!world_->fixed(id)) world_->set_velocity(id, fb * world_->velocity(id), fb * world_->angular_velocity(id));
         m.take_reference(*world_);
@@ -149,6 +149,11 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     convert_after_rigid_relaxation(ridge_joints);
     broken0 = engine_.stats().bonds_broken;
     P.stage = 3;
+    if (def.lattice_damping >= 0.0) {
+      damping = def.lattice_damping;
+      fp = std::exp(-damping * dt);
+      fb = std::exp(-damping * h);
+    }
     R.lattice_converged = run_stage(def.lattice_time) ? 1 : 0;
     R.lattice_time = P.time - t2;
   }

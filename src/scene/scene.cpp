@@ -48,7 +48,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "loose_blocks", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "fixed_friction_directions", "rigid_dt", "conversion", "region",
         "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep"}},
-      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time"}},
+      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time", "lattice_damping"}},
       {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
@@ -514,6 +514,9 @@ void read_relax(const JsonObject& o, BlocksDef::Relax& r) {
   r.lattice_time = x.number("lattice_time", r.lattice_time, Range::non_negative(), "s",
                             "all_at_start: the rigid blocks relax first, then convert and their lattices relax for "
                             "at most this long, e.g. 2; 0 = convert before the relaxation");
+  if (x.has("lattice_damping"))
+    r.lattice_damping = x.number("lattice_damping", r.damping, Range::non_negative(), "1/s",
+                                 "the lattice stage's damping (all_at_start), e.g. 0.5; default: damping");
 }
 
 /// Rigid ice blocks and their conversion.
