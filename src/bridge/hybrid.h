@@ -122,6 +122,8 @@ struct RelaxDef {
   double lattice_time = 0.0;
   /// 1/s: the lattice stage's damping (as `damping` above); < 0 (default): `damping`.
   double lattice_damping = -1.0;
+  /// The damping the lattice stage uses (lattice_damping, or damping when that is < 0).
+  double lattice_stage_damping() const { return lattice_damping >= 0.0 ? lattice_damping : damping; }
 };
 
 /// Where a relaxation is (every rigid step, for progress lines).

@@ -92,7 +92,13 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
   std::uint64_t broken_before = 0;  // lattice bonds broken before the lattice stage's clock reset
   const std::uint64_t k = report_.steps_per_rigid_step;
   const double h = report_.rigid_dt, dt = engine_.dt();
-  double damping = def.damping, fp = std::exp(-damping * dt), fb = std::exp(-damping * h);
+  double damping = 0.0, fp = 1.0, fb = 1.0;  // the stage's: particles every step, blocks every rigid step
+  const auto set_damping = [&](double d) {
+    damping = d;
+    fp = std::exp(-d * dt);
+    fb = std::exp(-d * h);
+  };
+  set_damping(def.damping);
   RelaxProgress P;
   // Up to `duration` s more: true when at rest (the speeds below def.speed for def.hold s).
   const auto run_stage = [&](double duration) {
@@ -149,11 +155,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     convert_after_rigid_relaxation(ridge_joints);
     broken0 = engine_.stats().bonds_broken;
     P.stage = 3;
-    if (def.lattice_damping >= 0.0) {
-      damping = def.lattice_damping;
-      fp = std::exp(-damping * dt);
-      fb = std::exp(-damping * h);
-    }
+    set_damping(def.lattice_stage_damping());
     R.lattice_converged = run_stage(def.lattice_time) ? 1 : 0;
     R.lattice_time = P.time - t2;
   }

@@ -178,7 +178,7 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
       {"speed", r.def.speed},
       {"hold", r.def.hold},
       {"damping", r.def.damping},
-      {"lattice_damping", r.def.lattice_damping >= 0.0 ? r.def.lattice_damping : r.def.damping},
+      {"lattice_damping", r.def.lattice_stage_damping()},
       {"jointed_time", r.jointed_time},
       {"jointed_converged", static_cast<double>(r.jointed_converged)},
       {"jointed_joints", static_cast<double>(r.jointed_joints)},
