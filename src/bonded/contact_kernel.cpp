@@ -4,6 +4,11 @@
 #include <algorithm>
 #include <cmath>
 
+#if defined(__AVX512F__) && defined(__AVX512VL__)
+#include <immintrin.h>
+#define HS_PAIR_GATHER_AVX512 1
+#endif
+
 namespace hs::bonded {
 
 std::vector<PairHistory> Engine::contact_history() const {
@@ -88,13 +93,17 @@ namespace hs::bonded {
 
 namespace {
 
-constexpr int kBlock = 64;
+constexpr int kBlock = 128;
 constexpr int kLanes = 8;  // the widest vector (AVX-512 doubles); kBlock is a multiple of it
 static_assert(kBlock % kLanes == 0);
 
+// The gather's lists (dx .. rj, pair) are kLanes longer than a block: the AVX-512 gather stores
+// eight lanes at a time at the list's end, of which only the touching ones count.
+constexpr int kList = kBlock + kLanes;
+
 struct Block {
-  alignas(64) double dx[kBlock], dy[kBlock], dz[kBlock];
-  alignas(64) double ri[kBlock], rj[kBlock], smeff[kBlock];
+  alignas(64) double dx[kList], dy[kList], dz[kList];
+  alignas(64) double ri[kList], rj[kList], smeff[kBlock];
   alignas(64) double dvx[kBlock], dvy[kBlock], dvz[kBlock];
   alignas(64) double wix[kBlock], wiy[kBlock], wiz[kBlock], wjx[kBlock], wjy[kBlock], wjz[kBlock];
   alignas(64) double xix[kBlock], xiy[kBlock], xiz[kBlock];
@@ -102,8 +111,29 @@ struct Block {
   alignas(64) double fx[kBlock], fy[kBlock], fz[kBlock];
   alignas(64) double tix[kBlock], tiy[kBlock], tiz[kBlock], tjx[kBlock], tjy[kBlock], tjz[kBlock];
   alignas(64) double delta[kBlock];
-  std::uint32_t pair[kBlock];
+  std::uint32_t pair[kList];
 };
+
+#ifdef HS_PAIR_GATHER_AVX512
+// Eight particles' (x, y, z, r) rows, as read from the packed copy, into four vectors of eight
+// lanes: x, y, z, r.
+inline void transpose8x4(const __m256d a[8], __m512d& X, __m512d& Y, __m512d& Z, __m512d& R) {
+  const __m512d t0 = _mm512_insertf64x4(_mm512_castpd256_pd512(a[0]), a[4], 1);
+  const __m512d t1 = _mm512_insertf64x4(_mm512_castpd256_pd512(a[1]), a[5], 1);
+  const __m512d t2 = _mm512_insertf64x4(_mm512_castpd256_pd512(a[2]), a[6], 1);
+  const __m512d t3 = _mm512_insertf64x4(_mm512_castpd256_pd512(a[3]), a[7], 1);
+  const __m512d u0 = _mm512_unpacklo_pd(t0, t1);  // x0 x1 z0 z1 | x4 x5 z4 z5
+  const __m512d u1 = _mm512_unpackhi_pd(t0, t1);  // y0 y1 r0 r1 | y4 y5 r4 r5
+  const __m512d u2 = _mm512_unpacklo_pd(t2, t3);  // x2 x3 z2 z3 | x6 x7 z6 z7
+  const __m512d u3 = _mm512_unpackhi_pd(t2, t3);  // y2 y3 r2 r3 | y6 y7 r6 r7
+  const __m512i lo = _mm512_set_epi64(13, 12, 5, 4, 9, 8, 1, 0);
+  const __m512i hi = _mm512_set_epi64(15, 14, 7, 6, 11, 10, 3, 2);
+  X = _mm512_permutex2var_pd(u0, lo, u2);
+  Z = _mm512_permutex2var_pd(u0, hi, u2);
+  Y = _mm512_permutex2var_pd(u1, lo, u3);
+  R = _mm512_permutex2var_pd(u1, hi, u3);
+}
+#endif
 
 // The normal spring and the damping coefficients of the two laws, lane by lane.
 struct LinearTag {
@@ -229,7 +259,19 @@ void Engine::pair_kernel_impl(const Tag& law) {
   std::uint32_t wi = 0, wj = 0;
   thread_local Block b;
   const double* smeff = pair_smeff();
-  std::uint32_t apart[kBlock];
+  std::uint32_t apart[kList];
+#ifdef HS_PAIR_GATHER_AVX512
+  // positions and radii packed four to a particle (x, y, z, r), aligned, for the vector gather
+  thread_local std::vector<double, Eigen::aligned_allocator<double>> packed;
+  packed.resize(4 * ps_.size());
+  double* __restrict xr = packed.data();
+  for (std::size_t i = 0; i < ps_.size(); ++i) {
+    xr[4 * i] = x[i].x();
+    xr[4 * i + 1] = x[i].y();
+    xr[4 * i + 2] = x[i].z();
+    xr[4 * i + 3] = r[i];
+  }
+#endif
   const std::size_t np = pairs_.size();
   ContactPair* pairs = pairs_.data();
   // The force and torque of the particle whose pairs are being scattered stay in registers
@@ -242,9 +284,42 @@ void Engine::pair_kernel_impl(const Tag& law) {
     const int len = static_cast<int>(std::min<std::size_t>(kBlock, np - p0));
     // 1a. which pairs touch (no branches): touching pairs to b.pair with their separation and
     // radii (written at lane m whether or not the pair touches; a pair apart is overwritten by
-    // the next), the others to apart
-    int m = 0, z = 0;
-    for (int q = 0; q < len; ++q) {
+    // the next), the others to apart. With AVX-512, eight pairs at a time: positions and radii
+    // from the packed copy, transposed into lanes, the touching lanes compressed to the list's
+    // end (every pair apart goes to apart; clearing a zero spring changes nothing).
+    int m = 0, z = 0, q = 0;
+#ifdef HS_PAIR_GATHER_AVX512
+    // eight pairs at a time from the packed (x, y, z, r) copy; the same sums as the scalar loop
+    for (; q + kLanes <= len; q += kLanes) {
+      const ContactPair* P = pairs + p0 + q;
+      __m256d a[8], c[8];
+      for (int l = 0; l < 8; ++l) {
+        a[l] = _mm256_load_pd(xr + 4 * std::size_t{P[l].i});
+        c[l] = _mm256_load_pd(xr + 4 * std::size_t{P[l].j});
+      }
+      __m512d Xi, Yi, Zi, Ri, Xj, Yj, Zj, Rj;
+      transpose8x4(a, Xi, Yi, Zi, Ri);
+      transpose8x4(c, Xj, Yj, Zj, Rj);
+      const __m512d DX = _mm512_sub_pd(Xj, Xi), DY = _mm512_sub_pd(Yj, Yi), DZ = _mm512_sub_pd(Zj, Zi);
+      const __m512d RS = _mm512_add_pd(Ri, Rj);
+      // (dx dx + dy dy) + dz dz with the last product fused: the sum the scalar loop's
+      // d.squaredNorm() makes, so both decide alike which pairs touch
+      const __m512d d2 = _mm512_fmadd_pd(DZ, DZ, _mm512_add_pd(_mm512_mul_pd(DX, DX), _mm512_mul_pd(DY, DY)));
+      const __mmask8 touch = _mm512_cmp_pd_mask(d2, _mm512_mul_pd(RS, RS), _CMP_LT_OQ);
+      const __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(p0 + q)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+      _mm512_storeu_pd(b.dx + m, _mm512_maskz_compress_pd(touch, DX));
+      _mm512_storeu_pd(b.dy + m, _mm512_maskz_compress_pd(touch, DY));
+      _mm512_storeu_pd(b.dz + m, _mm512_maskz_compress_pd(touch, DZ));
+      _mm512_storeu_pd(b.ri + m, _mm512_maskz_compress_pd(touch, Ri));
+      _mm512_storeu_pd(b.rj + m, _mm512_maskz_compress_pd(touch, Rj));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(b.pair + m), _mm256_maskz_compress_epi32(touch, idx));
+      _mm256_storeu_si256(reinterpret_cast<__m256i*>(apart + z), _mm256_maskz_compress_epi32(static_cast<__mmask8>(~touch), idx));
+      const int nt = __builtin_popcount(touch);
+      m += nt;
+      z += 8 - nt;
+    }
+#endif
+    for (; q < len; ++q) {
       const ContactPair& p = pairs[p0 + q];
       const std::uint32_t i = p.i, j = p.j;
       const double ri = r[i], rj = r[j];
@@ -279,6 +354,7 @@ void Engine::pair_kernel_impl(const Tag& law) {
     const int mpad = (m + kLanes - 1) / kLanes * kLanes;
     for (int k = m; k < mpad; ++k) {
       b.dx[k] = 1.0; b.dy[k] = 0.0; b.dz[k] = 0.0;
+      b.ri[k] = 1.0; b.rj[k] = 1.0;  // (finite radii: no NaN in the idle lanes' sums)
       b.smeff[k] = 0.0;
     }
     // 2. the law, all lanes alike
