@@ -1,4 +1,5 @@
 #include "engine.h"
+#include "integrate_kernel.h"
 
 #include "common/error.h"
 #include "common/ice_formulas.h"
@@ -481,6 +482,9 @@ void Engine::build_pair_list() {
 
   pairs_.clear();
   pair_smeff_.clear();  // (made again by the pair kernel)
+  // Sorted by cell with no ghosts, a cell before i's (in cell order) holds only particles before
+  // i, which j > i excludes: those cells are not visited (the same list, in the same order).
+  const bool cell_ordered = def_.spatial_sort && n == ps_.n_owned;
   for (std::uint32_t i = 0; i < n; ++i) {
     const Vec3 xi = ps_.x[i];
     const double ri = ps_.radius[i];
@@ -496,6 +500,7 @@ void Engine::build_pair_list() {
           const int x = cx + dx;
           if (x < 0 || x >= nx) continue;
           const std::uint32_t cc = (static_cast<std::uint32_t>(z) * ny + y) * nx + x;
+          if (cell_ordered && cc < c) continue;
           for (std::uint32_t k = cell_start_[cc]; k < cell_start_[cc + 1]; ++k) {
             const std::uint32_t j = cell_items_[k];
             if (j <= i) continue;
@@ -943,15 +948,8 @@ void Engine::step() {
   const double* ii = ps_.inv_inertia.data();
   const double* mass = ps_.mass.data();
   const Vec3 g = def_.gravity;
-  double disp2 = 0.0;
-  for (std::size_t i = 0; i < n; ++i) {
-    v[i] += hdt * im[i] * fk[i];
-    w[i] += hdt * ii[i] * tk[i];
-    x[i] += dt * v[i];
-    disp2 = std::max(disp2, (x[i] - x_at_build_[i]).squaredNorm());
-    fk[i] = mass[i] * g;  // this step's forces start here (field_forces)
-    tk[i].setZero();
-  }
+  // this step's forces start from gravity here (field_forces); integrate_kernel.cpp
+  const double disp2 = kick_drift(n, dt, hdt, x, v, w, fk, tk, im, ii, mass, x_at_build_.data(), g);
   fields_preset_ = stats_.neighbor_rebuilds;
   fields_preset_n_ = n;
   if (rotate)
@@ -979,16 +977,18 @@ void Engine::step() {
   const Vec3* t = ps_.torque.data();
   im = ps_.inv_mass.data();
   ii = ps_.inv_inertia.data();
-  double worst_v2 = 0.0;
+  double worst_v2 = kick(n, hdt, v, w, f, t, im, ii);
   std::uint32_t worst = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    v[i] += hdt * im[i] * f[i];
-    w[i] += hdt * ii[i] * t[i];
-    const double v2 = v[i].squaredNorm();
-    if (!(v2 <= worst_v2)) {  // also catches NaN
-      worst_v2 = v2;
-      worst = static_cast<std::uint32_t>(i);
-      if (std::isnan(v2)) break;
+  if (!(worst_v2 <= def_.limits.max_speed * def_.limits.max_speed)) {
+    // Too fast somewhere (or NaN): which particle, for the message (the first NaN, or the fastest)
+    worst_v2 = 0.0;
+    for (std::size_t i = 0; i < n; ++i) {
+      const double v2 = v[i].squaredNorm();
+      if (!(v2 <= worst_v2)) {  // also catches NaN
+        worst_v2 = v2;
+        worst = static_cast<std::uint32_t>(i);
+        if (std::isnan(v2)) break;
+      }
     }
   }
   check_blowup(worst, worst_v2, finish_forces(unstable_here(worst_v2)));
