@@ -477,7 +477,29 @@ void Engine::build_pair_list() {
     for (std::size_t i = 0; i < n; ++i) cell_items_[fill[cell_of_[i]]++] = static_cast<std::uint32_t>(i);
   }
   build_partner_csr(n);
-  std::unordered_map<GidPair, Vec3, GidPairHash> history = take_contact_history();
+  // Springs carried into the new list. On one rank with nothing carried by global id (a restart,
+  // set_contact_history), the old list's local indices are still this store's (sort_spatially
+  // renumbered them), so the springs are looked up by index: a CSR on the lower index, each spring
+  // oriented from the lower index to the higher. Otherwise by global id (take_contact_history).
+  // Both give every pair the same spring.
+  const bool by_index = !parallel() && carried_history_.empty();
+  std::unordered_map<GidPair, Vec3, GidPairHash> history;
+  std::vector<std::uint32_t>& old_start = history_start_;
+  std::vector<std::pair<std::uint32_t, Vec3>>& old_items = history_items_;
+  old_items.clear();
+  if (by_index) {
+    old_start.assign(n + 1, 0);
+    for (const auto& p : pairs_)
+      if (p.xi.squaredNorm() > 0.0) ++old_start[std::min(p.i, p.j) + 1];
+    for (std::size_t i = 0; i < n; ++i) old_start[i + 1] += old_start[i];
+    old_items.resize(old_start[n]);
+    std::vector<std::uint32_t> fill(old_start.begin(), old_start.end() - 1);
+    for (const auto& p : pairs_)
+      if (p.xi.squaredNorm() > 0.0)
+        old_items[fill[std::min(p.i, p.j)]++] = p.i < p.j ? std::make_pair(p.j, p.xi) : std::make_pair(p.i, Vec3(-p.xi));
+  } else {
+    history = take_contact_history();
+  }
   const std::uint32_t n_owned = static_cast<std::uint32_t>(ps_.n_owned);
 
   pairs_.clear();
@@ -519,6 +541,13 @@ void Engine::build_pair_list() {
       }
     }
   }
+  if (!old_items.empty())
+    for (auto& p : pairs_)  // (i < j in the new list)
+      for (std::uint32_t k = old_start[p.i]; k < old_start[p.i + 1]; ++k)
+        if (old_items[k].first == p.j) {
+          p.xi = old_items[k].second;
+          break;
+        }
   if (!history.empty())
     for (auto& p : pairs_) {
       auto it = history.find(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]));
