@@ -67,6 +67,28 @@ inline double max_lane(__m512d a) {
   for (int k = 1; k < 8; ++k) m = l[k] > m ? l[k] : m;
   return m;
 }
+
+// Half kicks of eight particles starting at i: v += hdt im f, w += hdt ii t (stored); the new
+// velocities are returned in v0 v1 v2 (packed, as in memory).
+inline void kick8(const Spread& spread, __m512d H, std::size_t i, Vec3* v, Vec3* w, const Vec3* f, const Vec3* t,
+                  const double* im, const double* ii, __m512d& v0, __m512d& v1, __m512d& v2) {
+  double* V = v[i].data();
+  double* W = w[i].data();
+  const double* F = f[i].data();
+  const double* T = t[i].data();
+  __m512d a0, a1, a2, b0, b1, b2;
+  spread(_mm512_mul_pd(H, _mm512_loadu_pd(im + i)), a0, a1, a2);
+  spread(_mm512_mul_pd(H, _mm512_loadu_pd(ii + i)), b0, b1, b2);
+  v0 = _mm512_fmadd_pd(a0, _mm512_loadu_pd(F), _mm512_loadu_pd(V));
+  v1 = _mm512_fmadd_pd(a1, _mm512_loadu_pd(F + 8), _mm512_loadu_pd(V + 8));
+  v2 = _mm512_fmadd_pd(a2, _mm512_loadu_pd(F + 16), _mm512_loadu_pd(V + 16));
+  _mm512_storeu_pd(V, v0);
+  _mm512_storeu_pd(V + 8, v1);
+  _mm512_storeu_pd(V + 16, v2);
+  _mm512_storeu_pd(W, _mm512_fmadd_pd(b0, _mm512_loadu_pd(T), _mm512_loadu_pd(W)));
+  _mm512_storeu_pd(W + 8, _mm512_fmadd_pd(b1, _mm512_loadu_pd(T + 8), _mm512_loadu_pd(W + 8)));
+  _mm512_storeu_pd(W + 16, _mm512_fmadd_pd(b2, _mm512_loadu_pd(T + 16), _mm512_loadu_pd(W + 16)));
+}
 #endif
 
 }  // namespace
@@ -86,24 +108,12 @@ double kick_drift(std::size_t n, double dt, double hdt, Vec3* x, Vec3* v, Vec3* 
   __m512d D2 = _mm512_setzero_pd();
   for (; i + 8 <= n; i += 8) {
     double* X = x[i].data();
-    double* V = v[i].data();
-    double* W = w[i].data();
     double* F = f[i].data();
     double* T = t[i].data();
     const double* XB = x_build[i].data();
-    __m512d a0, a1, a2, b0, b1, b2, m0, m1, m2;
-    spread(_mm512_mul_pd(H, _mm512_loadu_pd(im + i)), a0, a1, a2);
-    spread(_mm512_mul_pd(H, _mm512_loadu_pd(ii + i)), b0, b1, b2);
+    __m512d v0, v1, v2, m0, m1, m2;
+    kick8(spread, H, i, v, w, f, t, im, ii, v0, v1, v2);
     spread(_mm512_loadu_pd(mass + i), m0, m1, m2);
-    const __m512d v0 = _mm512_fmadd_pd(a0, _mm512_loadu_pd(F), _mm512_loadu_pd(V));
-    const __m512d v1 = _mm512_fmadd_pd(a1, _mm512_loadu_pd(F + 8), _mm512_loadu_pd(V + 8));
-    const __m512d v2 = _mm512_fmadd_pd(a2, _mm512_loadu_pd(F + 16), _mm512_loadu_pd(V + 16));
-    _mm512_storeu_pd(V, v0);
-    _mm512_storeu_pd(V + 8, v1);
-    _mm512_storeu_pd(V + 16, v2);
-    _mm512_storeu_pd(W, _mm512_fmadd_pd(b0, _mm512_loadu_pd(T), _mm512_loadu_pd(W)));
-    _mm512_storeu_pd(W + 8, _mm512_fmadd_pd(b1, _mm512_loadu_pd(T + 8), _mm512_loadu_pd(W + 8)));
-    _mm512_storeu_pd(W + 16, _mm512_fmadd_pd(b2, _mm512_loadu_pd(T + 16), _mm512_loadu_pd(W + 16)));
     const __m512d x0 = _mm512_fmadd_pd(DT, v0, _mm512_loadu_pd(X));
     const __m512d x1 = _mm512_fmadd_pd(DT, v1, _mm512_loadu_pd(X + 8));
     const __m512d x2 = _mm512_fmadd_pd(DT, v2, _mm512_loadu_pd(X + 16));
@@ -141,22 +151,8 @@ double kick(std::size_t n, double hdt, Vec3* v, Vec3* w, const Vec3* f, const Ve
   __m512d M = _mm512_setzero_pd();
   __mmask8 bad = 0;
   for (; i + 8 <= n; i += 8) {
-    double* V = v[i].data();
-    double* W = w[i].data();
-    const double* F = f[i].data();
-    const double* T = t[i].data();
-    __m512d a0, a1, a2, b0, b1, b2;
-    spread(_mm512_mul_pd(H, _mm512_loadu_pd(im + i)), a0, a1, a2);
-    spread(_mm512_mul_pd(H, _mm512_loadu_pd(ii + i)), b0, b1, b2);
-    const __m512d v0 = _mm512_fmadd_pd(a0, _mm512_loadu_pd(F), _mm512_loadu_pd(V));
-    const __m512d v1 = _mm512_fmadd_pd(a1, _mm512_loadu_pd(F + 8), _mm512_loadu_pd(V + 8));
-    const __m512d v2 = _mm512_fmadd_pd(a2, _mm512_loadu_pd(F + 16), _mm512_loadu_pd(V + 16));
-    _mm512_storeu_pd(V, v0);
-    _mm512_storeu_pd(V + 8, v1);
-    _mm512_storeu_pd(V + 16, v2);
-    _mm512_storeu_pd(W, _mm512_fmadd_pd(b0, _mm512_loadu_pd(T), _mm512_loadu_pd(W)));
-    _mm512_storeu_pd(W + 8, _mm512_fmadd_pd(b1, _mm512_loadu_pd(T + 8), _mm512_loadu_pd(W + 8)));
-    _mm512_storeu_pd(W + 16, _mm512_fmadd_pd(b2, _mm512_loadu_pd(T + 16), _mm512_loadu_pd(W + 16)));
+    __m512d v0, v1, v2;
+    kick8(spread, H, i, v, w, f, t, im, ii, v0, v1, v2);
     const __m512d s = squared_lengths(v0, v1, v2);
     bad |= _mm512_cmp_pd_mask(s, s, _CMP_UNORD_Q);
     M = _mm512_max_pd(M, s);
