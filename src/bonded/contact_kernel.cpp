@@ -286,7 +286,7 @@ void Engine::pair_kernel_impl(const Tag& law) {
     // radii (written at lane m whether or not the pair touches; a pair apart is overwritten by
     // the next), the others to apart. With AVX-512, eight pairs at a time: positions and radii
     // from the packed copy, transposed into lanes, the touching lanes compressed to the list's
-    // end (every pair apart goes to apart; clearing a zero spring changes nothing).
+    // end (every pair apart goes to apart; the clearing below skips the zero springs).
     int m = 0, z = 0, q = 0;
 #ifdef HS_PAIR_GATHER_AVX512
     // eight pairs at a time from the packed (x, y, z, r) copy; the same sums as the scalar loop
@@ -294,8 +294,8 @@ void Engine::pair_kernel_impl(const Tag& law) {
       const ContactPair* P = pairs + p0 + q;
       __m256d a[8], c[8];
       for (int l = 0; l < 8; ++l) {
-        a[l] = _mm256_load_pd(xr + 4 * std::size_t{P[l].i});
-        c[l] = _mm256_load_pd(xr + 4 * std::size_t{P[l].j});
+        a[l] = _mm256_loadu_pd(xr + 4 * std::size_t{P[l].i});  // (aligned rows; loadu costs nothing then)
+        c[l] = _mm256_loadu_pd(xr + 4 * std::size_t{P[l].j});
       }
       __m512d Xi, Yi, Zi, Ri, Xj, Yj, Zj, Rj;
       transpose8x4(a, Xi, Yi, Zi, Ri);
@@ -304,7 +304,11 @@ void Engine::pair_kernel_impl(const Tag& law) {
       const __m512d RS = _mm512_add_pd(Ri, Rj);
       // (dx dx + dy dy) + dz dz with the last product fused: the sum the scalar loop's
       // d.squaredNorm() makes, so both decide alike which pairs touch
-      const __m512d d2 = _mm512_fmadd_pd(DZ, DZ, _mm512_add_pd(_mm512_mul_pd(DX, DX), _mm512_mul_pd(DY, DY)));
+      // (GCC would contract mul + add of intrinsics into an FMA; the empty asm keeps the
+      // products rounded)
+      __m512d xx = _mm512_mul_pd(DX, DX), yy = _mm512_mul_pd(DY, DY);
+      asm("" : "+v"(xx), "+v"(yy));
+      const __m512d d2 = _mm512_fmadd_pd(DZ, DZ, _mm512_add_pd(xx, yy));
       const __mmask8 touch = _mm512_cmp_pd_mask(d2, _mm512_mul_pd(RS, RS), _CMP_LT_OQ);
       const __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(p0 + q)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
       _mm512_storeu_pd(b.dx + m, _mm512_maskz_compress_pd(touch, DX));
@@ -335,7 +339,12 @@ void Engine::pair_kernel_impl(const Tag& law) {
       apart[z] = static_cast<std::uint32_t>(p0 + q);
       z += (!touch && spring) ? 1 : 0;
     }
-    for (int k = 0; k < z; ++k) pairs[apart[k]].xi.setZero();  // contact over: the spring goes
+    // contact over: the spring goes (only a non-zero one is written: most pairs apart were apart
+    // before, and a spring of signed zeros stays as it is, as in the scalar pass)
+    for (int k = 0; k < z; ++k) {
+      Vec3& xi = pairs[apart[k]].xi;
+      if ((xi.x() != 0.0) | (xi.y() != 0.0) | (xi.z() != 0.0)) xi.setZero();
+    }
     // 1b. the touching pairs' motion and springs
     for (int k = 0; k < m; ++k) {
       const ContactPair& p = pairs[b.pair[k]];

@@ -56,7 +56,14 @@ inline __m512d squared_lengths(__m512d q0, __m512d q1, __m512d q2) {
   const __m512d X = _mm512_permutex2var_pd(tx, _mm512_set_epi64(13, 10, 5, 4, 3, 2, 1, 0), q2);
   const __m512d Y = _mm512_permutex2var_pd(ty, _mm512_set_epi64(14, 11, 8, 4, 3, 2, 1, 0), q2);
   const __m512d Z = _mm512_permutex2var_pd(tz, _mm512_set_epi64(15, 12, 9, 4, 3, 2, 1, 0), q2);
-  return _mm512_fmadd_pd(Z, Z, _mm512_fmadd_pd(Y, Y, _mm512_mul_pd(X, X)));
+  // (x x + y y) + z z with the last product fused: the sum GCC makes of the scalar tail's
+  // squaredNorm (and of the Vec3 loops before), so every particle's figure is the same bits
+  // wherever it falls (vector body or tail: under MPI that depends on the rank's count)
+  // (GCC would contract mul + add of intrinsics into an FMA; the empty asm keeps the products
+  // rounded)
+  __m512d xx = _mm512_mul_pd(X, X), yy = _mm512_mul_pd(Y, Y);
+  asm("" : "+v"(xx), "+v"(yy));
+  return _mm512_fmadd_pd(Z, Z, _mm512_add_pd(xx, yy));
 }
 
 // The largest lane (GCC 12's _mm512_reduce_max_pd trips -Wuninitialized in its own header).
@@ -120,9 +127,12 @@ double kick_drift(std::size_t n, double dt, double hdt, Vec3* x, Vec3* v, Vec3* 
     _mm512_storeu_pd(X, x0);
     _mm512_storeu_pd(X + 8, x1);
     _mm512_storeu_pd(X + 16, x2);
-    D2 = _mm512_max_pd(D2, squared_lengths(_mm512_sub_pd(x0, _mm512_loadu_pd(XB)),
-                                           _mm512_sub_pd(x1, _mm512_loadu_pd(XB + 8)),
-                                           _mm512_sub_pd(x2, _mm512_loadu_pd(XB + 16))));
+    // (max_pd returns its second operand when either is NaN: a NaN displacement is ignored, as
+    // std::max(disp2, d2) did)
+    D2 = _mm512_max_pd(squared_lengths(_mm512_sub_pd(x0, _mm512_loadu_pd(XB)),
+                                       _mm512_sub_pd(x1, _mm512_loadu_pd(XB + 8)),
+                                       _mm512_sub_pd(x2, _mm512_loadu_pd(XB + 16))),
+                       D2);
     _mm512_storeu_pd(F, _mm512_mul_pd(m0, G0));
     _mm512_storeu_pd(F + 8, _mm512_mul_pd(m1, G1));
     _mm512_storeu_pd(F + 16, _mm512_mul_pd(m2, G2));

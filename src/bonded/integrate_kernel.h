@@ -1,8 +1,9 @@
-// The velocity-Verlet integrator's two passes over the owned particles (Engine::step), written
-// over the coordinates as flat arrays so that the compiler vectorises them (several particles per
-// register; integrate_kernel.cpp is built with -fopenmp-simd). Each particle's arithmetic is
-// what the Vec3 loops did (a product times a vector added with one fused multiply-add), so the
-// state is bit-identical; only the rebuild measure's sum may round differently (below).
+// The velocity-Verlet integrator's two passes over the owned particles (Engine::step). With
+// AVX-512 eight particles at a time (their Vec3s are 24 packed doubles, three registers); without
+// it, and for the last n % 8, the Vec3 loops they replaced. Each particle's arithmetic is what
+// the Vec3 loops did (a product times a vector added with one fused multiply-add; squared
+// lengths as (x x + y y) + z z, the last product fused), so the state and both maxima are
+// bit-identical to those loops.
 #pragma once
 
 #include "common/types.h"
@@ -13,8 +14,7 @@ namespace hs::bonded {
 
 /// First half of a step for particles [0, n): v += hdt im f, w += hdt ii t, x += dt v; then the
 /// forces start from gravity (f = m g) and the torques from zero. Returns the largest squared
-/// displacement since the last rebuild (|x - x_build|^2; its sum is the vector loop's, which may
-/// differ from Eigen's squaredNorm in the last bit: it only decides when to rebuild).
+/// displacement since the last rebuild (|x - x_build|^2; NaN ones ignored, as std::max did).
 double kick_drift(std::size_t n, double dt, double hdt, Vec3* x, Vec3* v, Vec3* w, Vec3* f, Vec3* t,
                   const double* inv_mass, const double* inv_inertia, const double* mass, const Vec3* x_build,
                   const Vec3& gravity);
