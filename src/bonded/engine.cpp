@@ -484,9 +484,8 @@ void Engine::build_pair_list() {
   // Both give every pair the same spring.
   const bool by_index = !parallel() && carried_history_.empty();
   std::unordered_map<GidPair, Vec3, GidPairHash> history;
-  std::vector<std::uint32_t>& old_start = history_start_;
-  std::vector<std::pair<std::uint32_t, Vec3>>& old_items = history_items_;
-  old_items.clear();
+  std::vector<std::uint32_t> old_start;
+  std::vector<std::pair<std::uint32_t, Vec3>> old_items;
   if (by_index) {
     old_start.assign(n + 1, 0);
     for (const auto& p : pairs_)

@@ -528,8 +528,6 @@ class Engine {
   /// The checkpoint's crushed pairs (none in one written before them); `clear` first.
   void load_crushed_pairs(const StateArchive& a, const std::string& p, bool clear);
   std::vector<ContactPair> pairs_;
-  std::vector<std::uint32_t> history_start_;  ///< build_pair_list: the old list's springs by lower index (CSR)
-  std::vector<std::pair<std::uint32_t, Vec3>> history_items_;
   std::vector<double> pair_smeff_;  ///< per pair: sqrt(m_eff) (contact_kernel.cpp; cleared at rebuilds)
   std::vector<PlaneWall> walls_;
   std::vector<Vec3> wall_force_;
