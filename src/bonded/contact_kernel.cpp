@@ -231,6 +231,86 @@ void block_law(Block& b, int m, const Tag& law, double dt) {
   }
 }
 
+// Positions and radii packed four to a particle (x, y, z, r), aligned, for touch_test's vector
+// pass (a thread's scratch, remade each call); nullptr where there is no vector pass.
+const double* packed_positions([[maybe_unused]] const Vec3* x, [[maybe_unused]] const double* r,
+                               [[maybe_unused]] std::size_t n) {
+#ifdef HS_PAIR_GATHER_AVX512
+  thread_local std::vector<double, Eigen::aligned_allocator<double>> packed;
+  packed.resize(4 * n);
+  double* __restrict xr = packed.data();
+  for (std::size_t i = 0; i < n; ++i) {
+    xr[4 * i] = x[i].x();
+    xr[4 * i + 1] = x[i].y();
+    xr[4 * i + 2] = x[i].z();
+    xr[4 * i + 3] = r[i];
+  }
+  return xr;
+#else
+  return nullptr;
+#endif
+}
+
+// 1a of the pair kernel: which of the block's len pairs (from p0) touch, with no branches. The
+// touching ones go to b.pair (m of them) with their separation and radii (written at lane m
+// whether or not the pair touches; a pair apart is overwritten by the next), the others to
+// apart (z of them; the caller clears their springs). With AVX-512, eight pairs at a time:
+// positions and radii from the packed copy xr, transposed into lanes, the touching lanes
+// compressed to the lists' ends; the scalar loop does the rest (and all of it without AVX-512).
+inline void touch_test(Block& b, std::uint32_t* apart, const ContactPair* pairs, std::size_t p0, int len,
+                       const Vec3* x, const double* r, [[maybe_unused]] const double* xr, int& m, int& z) {
+  int q = 0;
+#ifdef HS_PAIR_GATHER_AVX512
+  // eight pairs at a time from the packed (x, y, z, r) copy; the same sums as the scalar loop
+  for (; q + kLanes <= len; q += kLanes) {
+    const ContactPair* P = pairs + p0 + q;
+    __m256d a[8], c[8];
+    for (int l = 0; l < 8; ++l) {
+      a[l] = _mm256_loadu_pd(xr + 4 * std::size_t{P[l].i});  // (aligned rows; loadu costs nothing then)
+      c[l] = _mm256_loadu_pd(xr + 4 * std::size_t{P[l].j});
+    }
+    __m512d Xi, Yi, Zi, Ri, Xj, Yj, Zj, Rj;
+    transpose8x4(a, Xi, Yi, Zi, Ri);
+    transpose8x4(c, Xj, Yj, Zj, Rj);
+    const __m512d DX = _mm512_sub_pd(Xj, Xi), DY = _mm512_sub_pd(Yj, Yi), DZ = _mm512_sub_pd(Zj, Zi);
+    const __m512d RS = _mm512_add_pd(Ri, Rj);
+    // (dx dx + dy dy) + dz dz with the last product fused: the sum the scalar loop's
+    // d.squaredNorm() makes, so both decide alike which pairs touch
+    // (GCC would contract mul + add of intrinsics into an FMA; the empty asm keeps the
+    // products rounded)
+    __m512d xx = _mm512_mul_pd(DX, DX), yy = _mm512_mul_pd(DY, DY);
+    asm("" : "+v"(xx), "+v"(yy));
+    const __m512d d2 = _mm512_fmadd_pd(DZ, DZ, _mm512_add_pd(xx, yy));
+    const __mmask8 touch = _mm512_cmp_pd_mask(d2, _mm512_mul_pd(RS, RS), _CMP_LT_OQ);
+    const __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(p0 + q)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
+    _mm512_storeu_pd(b.dx + m, _mm512_maskz_compress_pd(touch, DX));
+    _mm512_storeu_pd(b.dy + m, _mm512_maskz_compress_pd(touch, DY));
+    _mm512_storeu_pd(b.dz + m, _mm512_maskz_compress_pd(touch, DZ));
+    _mm512_storeu_pd(b.ri + m, _mm512_maskz_compress_pd(touch, Ri));
+    _mm512_storeu_pd(b.rj + m, _mm512_maskz_compress_pd(touch, Rj));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(b.pair + m), _mm256_maskz_compress_epi32(touch, idx));
+    _mm256_storeu_si256(reinterpret_cast<__m256i*>(apart + z), _mm256_maskz_compress_epi32(static_cast<__mmask8>(~touch), idx));
+    const int nt = __builtin_popcount(touch);
+    m += nt;
+    z += 8 - nt;
+  }
+#endif
+  for (; q < len; ++q) {
+    const ContactPair& p = pairs[p0 + q];
+    const std::uint32_t i = p.i, j = p.j;
+    const double ri = r[i], rj = r[j];
+    const double rs = ri + rj;
+    const Vec3 d = x[j] - x[i];
+    const bool touch = d.squaredNorm() < rs * rs;
+    b.dx[m] = d.x(); b.dy[m] = d.y(); b.dz[m] = d.z();
+    b.ri[m] = ri; b.rj[m] = rj;
+    b.pair[m] = static_cast<std::uint32_t>(p0 + q);
+    m += touch ? 1 : 0;
+    apart[z] = static_cast<std::uint32_t>(p0 + q);
+    z += touch ? 0 : 1;
+  }
+}
+
 }  // namespace
 
 const double* Engine::pair_smeff() {
@@ -260,18 +340,7 @@ void Engine::pair_kernel_impl(const Tag& law) {
   thread_local Block b;
   const double* smeff = pair_smeff();
   std::uint32_t apart[kList];
-#ifdef HS_PAIR_GATHER_AVX512
-  // positions and radii packed four to a particle (x, y, z, r), aligned, for the vector gather
-  thread_local std::vector<double, Eigen::aligned_allocator<double>> packed;
-  packed.resize(4 * ps_.size());
-  double* __restrict xr = packed.data();
-  for (std::size_t i = 0; i < ps_.size(); ++i) {
-    xr[4 * i] = x[i].x();
-    xr[4 * i + 1] = x[i].y();
-    xr[4 * i + 2] = x[i].z();
-    xr[4 * i + 3] = r[i];
-  }
-#endif
+  const double* xr = packed_positions(x, r, ps_.size());
   const std::size_t np = pairs_.size();
   ContactPair* pairs = pairs_.data();
   // The force and torque of the particle whose pairs are being scattered stay in registers
@@ -282,63 +351,9 @@ void Engine::pair_kernel_impl(const Tag& law) {
   Vec3 fcur = Vec3::Zero(), tcur = Vec3::Zero();
   for (std::size_t p0 = 0; p0 < np; p0 += kBlock) {
     const int len = static_cast<int>(std::min<std::size_t>(kBlock, np - p0));
-    // 1a. which pairs touch (no branches): touching pairs to b.pair with their separation and
-    // radii (written at lane m whether or not the pair touches; a pair apart is overwritten by
-    // the next), the others to apart. With AVX-512, eight pairs at a time: positions and radii
-    // from the packed copy, transposed into lanes, the touching lanes compressed to the list's
-    // end (every pair apart goes to apart; the clearing below skips the zero springs).
-    int m = 0, z = 0, q = 0;
-#ifdef HS_PAIR_GATHER_AVX512
-    // eight pairs at a time from the packed (x, y, z, r) copy; the same sums as the scalar loop
-    for (; q + kLanes <= len; q += kLanes) {
-      const ContactPair* P = pairs + p0 + q;
-      __m256d a[8], c[8];
-      for (int l = 0; l < 8; ++l) {
-        a[l] = _mm256_loadu_pd(xr + 4 * std::size_t{P[l].i});  // (aligned rows; loadu costs nothing then)
-        c[l] = _mm256_loadu_pd(xr + 4 * std::size_t{P[l].j});
-      }
-      __m512d Xi, Yi, Zi, Ri, Xj, Yj, Zj, Rj;
-      transpose8x4(a, Xi, Yi, Zi, Ri);
-      transpose8x4(c, Xj, Yj, Zj, Rj);
-      const __m512d DX = _mm512_sub_pd(Xj, Xi), DY = _mm512_sub_pd(Yj, Yi), DZ = _mm512_sub_pd(Zj, Zi);
-      const __m512d RS = _mm512_add_pd(Ri, Rj);
-      // (dx dx + dy dy) + dz dz with the last product fused: the sum the scalar loop's
-      // d.squaredNorm() makes, so both decide alike which pairs touch
-      // (GCC would contract mul + add of intrinsics into an FMA; the empty asm keeps the
-      // products rounded)
-      __m512d xx = _mm512_mul_pd(DX, DX), yy = _mm512_mul_pd(DY, DY);
-      asm("" : "+v"(xx), "+v"(yy));
-      const __m512d d2 = _mm512_fmadd_pd(DZ, DZ, _mm512_add_pd(xx, yy));
-      const __mmask8 touch = _mm512_cmp_pd_mask(d2, _mm512_mul_pd(RS, RS), _CMP_LT_OQ);
-      const __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(p0 + q)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-      _mm512_storeu_pd(b.dx + m, _mm512_maskz_compress_pd(touch, DX));
-      _mm512_storeu_pd(b.dy + m, _mm512_maskz_compress_pd(touch, DY));
-      _mm512_storeu_pd(b.dz + m, _mm512_maskz_compress_pd(touch, DZ));
-      _mm512_storeu_pd(b.ri + m, _mm512_maskz_compress_pd(touch, Ri));
-      _mm512_storeu_pd(b.rj + m, _mm512_maskz_compress_pd(touch, Rj));
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(b.pair + m), _mm256_maskz_compress_epi32(touch, idx));
-      _mm256_storeu_si256(reinterpret_cast<__m256i*>(apart + z), _mm256_maskz_compress_epi32(static_cast<__mmask8>(~touch), idx));
-      const int nt = __builtin_popcount(touch);
-      m += nt;
-      z += 8 - nt;
-    }
-#endif
-    for (; q < len; ++q) {
-      const ContactPair& p = pairs[p0 + q];
-      const std::uint32_t i = p.i, j = p.j;
-      const double ri = r[i], rj = r[j];
-      const double rs = ri + rj;
-      const Vec3 d = x[j] - x[i];
-      const bool touch = d.squaredNorm() < rs * rs;
-      // (a pair apart whose spring is already zero needs no store: most were apart before)
-      const bool spring = (p.xi.x() != 0.0) | (p.xi.y() != 0.0) | (p.xi.z() != 0.0);
-      b.dx[m] = d.x(); b.dy[m] = d.y(); b.dz[m] = d.z();
-      b.ri[m] = ri; b.rj[m] = rj;
-      b.pair[m] = static_cast<std::uint32_t>(p0 + q);
-      m += touch ? 1 : 0;
-      apart[z] = static_cast<std::uint32_t>(p0 + q);
-      z += (!touch && spring) ? 1 : 0;
-    }
+    // 1a. which pairs touch (touch_test)
+    int m = 0, z = 0;
+    touch_test(b, apart, pairs, p0, len, x, r, xr, m, z);
     // contact over: the spring goes (only a non-zero one is written: most pairs apart were apart
     // before, and a spring of signed zeros stays as it is, as in the scalar pass)
     for (int k = 0; k < z; ++k) {

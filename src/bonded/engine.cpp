@@ -422,6 +422,38 @@ std::unordered_map<GidPair, Vec3, GidPairHash> Engine::take_contact_history() {
   return history;
 }
 
+namespace {
+
+// A pair list's non-zero springs by local index, for the next list on the same store: a CSR on
+// each pair's lower index, the spring oriented from the lower index to the higher.
+class SpringsByIndex {
+ public:
+  SpringsByIndex() = default;
+  SpringsByIndex(const std::vector<ContactPair>& pairs, std::size_t n) : start_(n + 1, 0) {
+    for (const auto& p : pairs)
+      if (p.xi.squaredNorm() > 0.0) ++start_[std::min(p.i, p.j) + 1];
+    for (std::size_t i = 0; i < n; ++i) start_[i + 1] += start_[i];
+    items_.resize(start_[n]);
+    std::vector<std::uint32_t> fill(start_.begin(), start_.end() - 1);
+    for (const auto& p : pairs)
+      if (p.xi.squaredNorm() > 0.0)
+        items_[fill[std::min(p.i, p.j)]++] = p.i < p.j ? std::make_pair(p.j, p.xi) : std::make_pair(p.i, Vec3(-p.xi));
+  }
+  bool empty() const { return items_.empty(); }
+  /// The spring of pair (i, j), i < j, oriented from i to j; zero if it had none.
+  Vec3 of(std::uint32_t i, std::uint32_t j) const {
+    for (std::uint32_t k = start_[i]; k < start_[i + 1]; ++k)
+      if (items_[k].first == j) return items_[k].second;
+    return Vec3::Zero();
+  }
+
+ private:
+  std::vector<std::uint32_t> start_;
+  std::vector<std::pair<std::uint32_t, Vec3>> items_;
+};
+
+}  // namespace
+
 void Engine::build_pair_list() {
   const std::size_t n = ps_.size();
   ++stats_.neighbor_rebuilds;
@@ -484,21 +516,11 @@ void Engine::build_pair_list() {
   // Both give every pair the same spring.
   const bool by_index = !parallel() && carried_history_.empty();
   std::unordered_map<GidPair, Vec3, GidPairHash> history;
-  std::vector<std::uint32_t> old_start;
-  std::vector<std::pair<std::uint32_t, Vec3>> old_items;
-  if (by_index) {
-    old_start.assign(n + 1, 0);
-    for (const auto& p : pairs_)
-      if (p.xi.squaredNorm() > 0.0) ++old_start[std::min(p.i, p.j) + 1];
-    for (std::size_t i = 0; i < n; ++i) old_start[i + 1] += old_start[i];
-    old_items.resize(old_start[n]);
-    std::vector<std::uint32_t> fill(old_start.begin(), old_start.end() - 1);
-    for (const auto& p : pairs_)
-      if (p.xi.squaredNorm() > 0.0)
-        old_items[fill[std::min(p.i, p.j)]++] = p.i < p.j ? std::make_pair(p.j, p.xi) : std::make_pair(p.i, Vec3(-p.xi));
-  } else {
+  SpringsByIndex old_springs;
+  if (by_index)
+    old_springs = SpringsByIndex(pairs_, n);
+  else
     history = take_contact_history();
-  }
   const std::uint32_t n_owned = static_cast<std::uint32_t>(ps_.n_owned);
 
   pairs_.clear();
@@ -540,13 +562,8 @@ void Engine::build_pair_list() {
       }
     }
   }
-  if (!old_items.empty())
-    for (auto& p : pairs_)  // (i < j in the new list)
-      for (std::uint32_t k = old_start[p.i]; k < old_start[p.i + 1]; ++k)
-        if (old_items[k].first == p.j) {
-          p.xi = old_items[k].second;
-          break;
-        }
+  if (!old_springs.empty())
+    for (auto& p : pairs_) p.xi = old_springs.of(p.i, p.j);  // (i < j in the new list)
   if (!history.empty())
     for (auto& p : pairs_) {
       auto it = history.find(GidPair::of(ps_.gid[p.i], ps_.gid[p.j]));
