@@ -133,6 +133,19 @@ inline void transpose8x4(const __m256d a[8], __m512d& X, __m512d& Y, __m512d& Z,
   Y = _mm512_permutex2var_pd(u1, lo, u3);
   R = _mm512_permutex2var_pd(u1, hi, u3);
 }
+
+// Three doubles (a Vec3) into the low lanes of a vector; the fourth lane is masked, so the load
+// does not read past the three (no fault at an array's end).
+inline __m256d load3(const double* p) { return _mm256_maskz_loadu_pd(0x7, p); }
+
+// Eight rows (x, y, z, .) into three vectors of eight lanes, stored at X, Y, Z.
+inline void store_columns(const __m256d rows[8], double* X, double* Y, double* Z) {
+  __m512d x, y, z, unused;
+  transpose8x4(rows, x, y, z, unused);
+  _mm512_store_pd(X, x);
+  _mm512_store_pd(Y, y);
+  _mm512_store_pd(Z, z);
+}
 #endif
 
 // The normal spring and the damping coefficients of the two laws, lane by lane.
@@ -311,6 +324,84 @@ inline void touch_test(Block& b, std::uint32_t* apart, const ContactPair* pairs,
   }
 }
 
+// 1b of the pair kernel: the touching pairs' relative velocity dv = v_j - v_i, spins, springs and
+// sqrt(m_eff) into the block's lanes 0..m-1. With AVX-512 eight pairs at a time: each pair's
+// vectors as rows (the same subtraction, so the same dv), transposed into lanes.
+inline void gather_motion(Block& b, int m, const ContactPair* pairs, const Vec3* v, const Vec3* w,
+                          const double* smeff) {
+  int k = 0;
+#ifdef HS_PAIR_GATHER_AVX512
+  for (; k + kLanes <= m; k += kLanes) {
+    __m256d dv[8], wi[8], wj[8], xi[8];
+    for (int l = 0; l < 8; ++l) {
+      const ContactPair& p = pairs[b.pair[k + l]];
+      dv[l] = _mm256_sub_pd(load3(v[p.j].data()), load3(v[p.i].data()));
+      wi[l] = load3(w[p.i].data());
+      wj[l] = load3(w[p.j].data());
+      xi[l] = load3(p.xi.data());
+      b.smeff[k + l] = smeff[b.pair[k + l]];
+    }
+    store_columns(dv, b.dvx + k, b.dvy + k, b.dvz + k);
+    store_columns(wi, b.wix + k, b.wiy + k, b.wiz + k);
+    store_columns(wj, b.wjx + k, b.wjy + k, b.wjz + k);
+    store_columns(xi, b.xix + k, b.xiy + k, b.xiz + k);
+  }
+#endif
+  for (; k < m; ++k) {
+    const ContactPair& p = pairs[b.pair[k]];
+    const std::uint32_t i = p.i, j = p.j;
+    b.smeff[k] = smeff[b.pair[k]];
+    const Vec3 dv = v[j] - v[i];
+    b.dvx[k] = dv.x(); b.dvy[k] = dv.y(); b.dvz[k] = dv.z();
+    b.wix[k] = w[i].x(); b.wiy[k] = w[i].y(); b.wiz[k] = w[i].z();
+    b.wjx[k] = w[j].x(); b.wjy[k] = w[j].y(); b.wjz[k] = w[j].z();
+    b.xix[k] = p.xi.x(); b.xiy[k] = p.xi.y(); b.xiz[k] = p.xi.z();
+  }
+}
+
+// 3 of the pair kernel: the block's forces and torques onto the particles and its springs back
+// into the list, pair by pair in list order. The force and torque of the particle whose pairs are
+// being scattered stay in registers while its pairs follow one another in the list (j != i in
+// every pair, so no other write reaches them); the sums are the same, in the same order, as
+// adding to memory each time. (Tried with AVX-512, a pair's three components as one masked
+// vector: 15 % slower; a masked or 32-byte store does not forward to the next pair's load of a
+// neighbouring particle 24 bytes on.)
+class Scatter {
+ public:
+  Scatter(Vec3* f, Vec3* t) : f_(f), t_(t) {}
+  void block(const Block& b, int m, ContactPair* pairs) {
+    for (int k = 0; k < m; ++k) {
+      ContactPair& p = pairs[b.pair[k]];
+      const std::uint32_t i = p.i, j = p.j;
+      p.xi = Vec3(b.xix[k], b.xiy[k], b.xiz[k]);
+      if (i != cur_) {
+        finish();
+        cur_ = i;
+        fcur_ = f_[i];
+        tcur_ = t_[i];
+      }
+      const Vec3 F(b.fx[k], b.fy[k], b.fz[k]);
+      f_[j] += F;
+      fcur_ -= F;
+      tcur_ -= Vec3(b.tix[k], b.tiy[k], b.tiz[k]);
+      t_[j] += Vec3(b.tjx[k], b.tjy[k], b.tjz[k]);
+    }
+  }
+  // the current particle's sums back to memory
+  void finish() {
+    if (cur_ == kNoParticle) return;
+    f_[cur_] = fcur_;
+    t_[cur_] = tcur_;
+  }
+
+ private:
+  static constexpr std::uint32_t kNoParticle = 0xffffffffu;
+  Vec3* __restrict f_;
+  Vec3* __restrict t_;
+  std::uint32_t cur_ = kNoParticle;
+  Vec3 fcur_ = Vec3::Zero(), tcur_ = Vec3::Zero();
+};
+
 }  // namespace
 
 const double* Engine::pair_smeff() {
@@ -343,12 +434,7 @@ void Engine::pair_kernel_impl(const Tag& law) {
   const double* xr = packed_positions(x, r, ps_.size());
   const std::size_t np = pairs_.size();
   ContactPair* pairs = pairs_.data();
-  // The force and torque of the particle whose pairs are being scattered stay in registers
-  // while its pairs follow one another in the list (j != i in every pair, so no other write
-  // reaches them); the sums are the same, in the same order, as adding to memory each time.
-  constexpr std::uint32_t kNoParticle = 0xffffffffu;
-  std::uint32_t cur = kNoParticle;
-  Vec3 fcur = Vec3::Zero(), tcur = Vec3::Zero();
+  Scatter scatter(f, t);
   for (std::size_t p0 = 0; p0 < np; p0 += kBlock) {
     const int len = static_cast<int>(std::min<std::size_t>(kBlock, np - p0));
     // 1a. which pairs touch (touch_test)
@@ -361,16 +447,7 @@ void Engine::pair_kernel_impl(const Tag& law) {
       if ((xi.x() != 0.0) | (xi.y() != 0.0) | (xi.z() != 0.0)) xi.setZero();
     }
     // 1b. the touching pairs' motion and springs
-    for (int k = 0; k < m; ++k) {
-      const ContactPair& p = pairs[b.pair[k]];
-      const std::uint32_t i = p.i, j = p.j;
-      b.smeff[k] = smeff[b.pair[k]];
-      const Vec3 dv = v[j] - v[i];
-      b.dvx[k] = dv.x(); b.dvy[k] = dv.y(); b.dvz[k] = dv.z();
-      b.wix[k] = w[i].x(); b.wiy[k] = w[i].y(); b.wiz[k] = w[i].z();
-      b.wjx[k] = w[j].x(); b.wjy[k] = w[j].y(); b.wjz[k] = w[j].z();
-      b.xix[k] = p.xi.x(); b.xiy[k] = p.xi.y(); b.xiz[k] = p.xi.z();
-    }
+    gather_motion(b, m, pairs, v, w, smeff);
     // 1c. the lanes up to the next multiple of kLanes compute an idle pair (two immovable
     // particles, smeff = 0: no force, whatever their other inputs, which are what earlier blocks
     // left there; nothing of these lanes is scattered), so that the law never runs its scalar
@@ -384,25 +461,7 @@ void Engine::pair_kernel_impl(const Tag& law) {
     // 2. the law, all lanes alike
     block_law(b, mpad, law, dt);
     // 3. scatter in list order
-    for (int k = 0; k < m; ++k) {
-      ContactPair& p = pairs[b.pair[k]];
-      const std::uint32_t i = p.i, j = p.j;
-      p.xi = Vec3(b.xix[k], b.xiy[k], b.xiz[k]);
-      if (i != cur) {
-        if (cur != kNoParticle) {
-          f[cur] = fcur;
-          t[cur] = tcur;
-        }
-        cur = i;
-        fcur = f[i];
-        tcur = t[i];
-      }
-      const Vec3 F(b.fx[k], b.fy[k], b.fz[k]);
-      f[j] += F;
-      fcur -= F;
-      tcur -= Vec3(b.tix[k], b.tiy[k], b.tiz[k]);
-      t[j] += Vec3(b.tjx[k], b.tjy[k], b.tjz[k]);
-    }
+    scatter.block(b, m, pairs);
     // 4. the deepest overlap so far, in list order: the block is scanned only when one of its
     // lanes beats it (rarely, once the first blocks have set it)
     int deeper = 0;
@@ -418,10 +477,7 @@ void Engine::pair_kernel_impl(const Tag& law) {
         }
       }
   }
-  if (cur != kNoParticle) {
-    f[cur] = fcur;
-    t[cur] = tcur;
-  }
+  scatter.finish();
   if (worst > worst_overlap_ratio_) {
     worst_overlap_ratio_ = worst;
     worst_overlap_i_ = wi;
