@@ -319,12 +319,8 @@ void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint
     p.i = new_of_old[p.i];
     p.j = new_of_old[p.j];
   }
-  for (auto& h : wall_hist_) {
-    std::vector<Vec3> nh(h.size());
-    for (std::size_t k = 0; k < n; ++k) nh[k] = h[order[k]];
-    for (std::size_t k = n; k < h.size(); ++k) nh[k] = h[k];
-    h.swap(nh);
-  }
+  std::vector<char> done;
+  for (auto& h : wall_hist_) permute_in_place(h, order, done);
   for (auto& list : ghost_send_)
     for (auto& i : list) i = new_of_old[i];
 }

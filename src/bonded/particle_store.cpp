@@ -64,22 +64,16 @@ void ParticleStore::truncate(std::size_t n) {
   n_ghost = n - n_owned;
 }
 
-template <class T>
-static void apply_order(std::vector<T>& a, const std::vector<std::uint32_t>& order) {
-  std::vector<T> b;
-  b.reserve(a.size());
-  for (auto k : order) b.push_back(a[k]);
-  for (std::size_t k = order.size(); k < a.size(); ++k) b.push_back(a[k]);  // ghosts keep their place
-  a.swap(b);
-}
-
 void ParticleStore::permute(const std::vector<std::uint32_t>& order) {
   assert(order.size() == n_owned);
-  apply_order(x, order); apply_order(v, order); apply_order(f, order);
-  apply_order(omega, order); apply_order(torque, order); apply_order(q, order);
-  apply_order(radius, order); apply_order(inv_mass, order); apply_order(inv_inertia, order);
-  apply_order(mass, order); apply_order(buoyant_volume, order); apply_order(gid, order);
-  apply_order(material, order); apply_order(flags, order); apply_order(bond_count, order);
+  std::vector<char> done;
+  permute_in_place(x, order, done); permute_in_place(v, order, done); permute_in_place(f, order, done);
+  permute_in_place(omega, order, done); permute_in_place(torque, order, done); permute_in_place(q, order, done);
+  permute_in_place(radius, order, done); permute_in_place(inv_mass, order, done);
+  permute_in_place(inv_inertia, order, done); permute_in_place(mass, order, done);
+  permute_in_place(buoyant_volume, order, done); permute_in_place(gid, order, done);
+  permute_in_place(material, order, done); permute_in_place(flags, order, done);
+  permute_in_place(bond_count, order, done);
   rebuild_index();
 }
 

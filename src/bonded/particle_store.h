@@ -50,6 +50,32 @@ struct ParticleRecord {
   std::uint8_t flags, bond_count;
 };
 
+/// Reorders the first order.size() elements of a in place: new a[k] = old a[order[k]] (order a
+/// permutation of 0..order.size()-1; the elements after them stay). The permutation's cycles are
+/// followed with one element in hand, so no second array is made: a rebuild's sort touches no
+/// fresh pages (after a rebuild most particles stay where they were, and are skipped). `done` is
+/// scratch (one flag per element).
+template <class T>
+void permute_in_place(std::vector<T>& a, const std::vector<std::uint32_t>& order, std::vector<char>& done) {
+  const std::size_t n = order.size();
+  done.assign(n, 0);
+  for (std::size_t s = 0; s < n; ++s) {
+    if (done[s] || order[s] == s) continue;
+    const T held = a[s];
+    std::size_t k = s;
+    for (;;) {
+      done[k] = 1;
+      const std::size_t from = order[k];
+      if (from == s) {
+        a[k] = held;
+        break;
+      }
+      a[k] = a[from];  // (a[from] not yet written: the cycle reaches it next)
+      k = from;
+    }
+  }
+}
+
 class ParticleStore {
  public:
   // ---- hot state, touched every step ----
