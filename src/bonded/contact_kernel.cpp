@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <type_traits>
 
 #if defined(__AVX512F__) && defined(__AVX512VL__)
 #include <immintrin.h>
@@ -176,6 +177,52 @@ struct HertzTag {
   }
 };
 
+// The law's common part, one lane (the pair and wall kernels call it inside their vector loops):
+// the normal force, the tangential spring projected onto the tangent plane keeping its length and
+// advanced by vt dt, the Coulomb cap (the spring rewound so that it alone carries the capped
+// force); out: the force on j (fx, fy, fz) and the new spring in xi. A lane with smeff = 0 (two
+// immovable particles, or an idle lane) gets no force and keeps its spring.
+template <class Tag>
+[[gnu::always_inline]] inline void lane_force(const Tag& law, double delta, double rstar, double smeff, double nx,
+                                              double ny, double nz, double vn, double vtx, double vty, double vtz,
+                                              double dt, double& xi_x, double& xi_y, double& xi_z, double& fx,
+                                              double& fy, double& fz) {
+  const bool act = smeff != 0.0;
+  double fel, st, inv_st, gn, gt;
+  Tag::springs(law, delta, rstar, smeff, fel, st, inv_st, gn, gt);
+  const double fn = fel - gn * vn;
+  // spring history: onto the tangent plane keeping its length, then advanced by vt dt
+  double xix = xi_x, xiy = xi_y, xiz = xi_z;
+  const double before = xix * xix + xiy * xiy + xiz * xiz;
+  const double xn = xix * nx + xiy * ny + xiz * nz;
+  xix -= xn * nx;
+  xiy -= xn * ny;
+  xiz -= xn * nz;
+  const double after = xix * xix + xiy * xiy + xiz * xiz;
+  const double keep = after > 0.0 ? std::sqrt(before / (after > 0.0 ? after : 1.0)) : 1.0;
+  xix = xix * keep + vtx * dt;
+  xiy = xiy * keep + vty * dt;
+  xiz = xiz * keep + vtz * dt;
+  double ftx = -st * xix - gt * vtx, fty = -st * xiy - gt * vty, ftz = -st * xiz - gt * vtz;
+  // Coulomb cap; the spring is rewound so that it alone carries the capped force
+  const double ft2 = ftx * ftx + fty * fty + ftz * ftz;
+  const double cap = law.mu * (fn > 0.0 ? fn : 0.0);
+  const bool slip = ft2 > cap * cap;
+  const double s = slip ? cap / std::sqrt(slip ? ft2 : 1.0) : 1.0;
+  ftx *= s;
+  fty *= s;
+  ftz *= s;
+  xix = slip ? -(ftx + gt * vtx) * inv_st : xix;
+  xiy = slip ? -(fty + gt * vty) * inv_st : xiy;
+  xiz = slip ? -(ftz + gt * vtz) * inv_st : xiz;
+  xi_x = act ? xix : xi_x;
+  xi_y = act ? xiy : xi_y;
+  xi_z = act ? xiz : xi_z;
+  fx = act ? fn * nx + ftx : 0.0;
+  fy = act ? fn * ny + fty : 0.0;
+  fz = act ? fn * nz + ftz : 0.0;
+}
+
 template <class Tag>
 void block_law(Block& b, int m, const Tag& law, double dt) {
 #pragma omp simd
@@ -196,41 +243,10 @@ void block_law(Block& b, int m, const Tag& law, double dt) {
     const double vz = b.dvz[k] + (b.wjx[k] * ajy - b.wjy[k] * ajx) - (b.wix[k] * aiy - b.wiy[k] * aix);
     const double vn = vx * nx + vy * ny + vz * nz;
     const double vtx = vx - vn * nx, vty = vy - vn * ny, vtz = vz - vn * nz;
-    // two immovable particles (smeff = 0): no force, the spring kept
-    const bool act = b.smeff[k] != 0.0;
-    const double smeff = b.smeff[k];
     const double rstar = b.ri[k] * b.rj[k] / rs;
-    double fel, st, inv_st, gn, gt;
-    Tag::springs(law, delta, rstar, smeff, fel, st, inv_st, gn, gt);
-    const double fn = fel - gn * vn;
-    // spring history: onto the tangent plane keeping its length, then advanced by vt dt
-    double xix = b.xix[k], xiy = b.xiy[k], xiz = b.xiz[k];
-    const double before = xix * xix + xiy * xiy + xiz * xiz;
-    const double xn = xix * nx + xiy * ny + xiz * nz;
-    xix -= xn * nx;
-    xiy -= xn * ny;
-    xiz -= xn * nz;
-    const double after = xix * xix + xiy * xiy + xiz * xiz;
-    const double keep = after > 0.0 ? std::sqrt(before / (after > 0.0 ? after : 1.0)) : 1.0;
-    xix = xix * keep + vtx * dt;
-    xiy = xiy * keep + vty * dt;
-    xiz = xiz * keep + vtz * dt;
-    double ftx = -st * xix - gt * vtx, fty = -st * xiy - gt * vty, ftz = -st * xiz - gt * vtz;
-    // Coulomb cap; the spring is rewound so that it alone carries the capped force
-    const double ft2 = ftx * ftx + fty * fty + ftz * ftz;
-    const double cap = law.mu * (fn > 0.0 ? fn : 0.0);
-    const bool slip = ft2 > cap * cap;
-    const double s = slip ? cap / std::sqrt(slip ? ft2 : 1.0) : 1.0;
-    ftx *= s;
-    fty *= s;
-    ftz *= s;
-    xix = slip ? -(ftx + gt * vtx) * inv_st : xix;
-    xiy = slip ? -(fty + gt * vty) * inv_st : xiy;
-    xiz = slip ? -(ftz + gt * vtz) * inv_st : xiz;
-    b.xix[k] = act ? xix : b.xix[k];
-    b.xiy[k] = act ? xiy : b.xiy[k];
-    b.xiz[k] = act ? xiz : b.xiz[k];
-    const double fx = act ? fn * nx + ftx : 0.0, fy = act ? fn * ny + fty : 0.0, fz = act ? fn * nz + ftz : 0.0;
+    double fx, fy, fz;
+    lane_force(law, delta, rstar, b.smeff[k], nx, ny, nz, vn, vtx, vty, vtz, dt, b.xix[k], b.xiy[k], b.xiz[k], fx, fy,
+               fz);
     b.fx[k] = fx;
     b.fy[k] = fy;
     b.fz[k] = fz;
@@ -240,7 +256,47 @@ void block_law(Block& b, int m, const Tag& law, double dt) {
     b.tjx[k] = ajy * fz - ajz * fy;
     b.tjy[k] = ajz * fx - ajx * fz;
     b.tjz[k] = ajx * fy - ajy * fx;
-    b.delta[k] = act ? delta : 0.0;
+    b.delta[k] = b.smeff[k] != 0.0 ? delta : 0.0;
+  }
+}
+
+// One block of a plane wall's touching candidates (wall_kernel_impl): inputs, then outputs.
+struct WallBlock {
+  alignas(64) double delta[kBlock], r[kBlock], m[kBlock];
+  alignas(64) double vx[kBlock], vy[kBlock], vz[kBlock], wx[kBlock], wy[kBlock], wz[kBlock];
+  alignas(64) double xix[kBlock], xiy[kBlock], xiz[kBlock];
+  alignas(64) double fx[kBlock], fy[kBlock], fz[kBlock], tx[kBlock], ty[kBlock], tz[kBlock];
+  std::uint32_t particle[kBlock];
+};
+
+// The law between a plane wall (unit normal n towards the particles, velocity u) and the block's
+// particles: a wall is a sphere of infinite radius and mass, so R* = r and m_eff = m; the arm
+// from a particle's centre to the contact point is a = -(r - delta/2) n. A lane with m = 0 is
+// idle (no force).
+template <class Tag>
+void wall_block_law(WallBlock& b, int m, const Tag& law, const Vec3& n, const Vec3& u, double dt) {
+  const double nx = n.x(), ny = n.y(), nz = n.z();
+  const double ux = u.x(), uy = u.y(), uz = u.z();
+#pragma omp simd
+  for (int k = 0; k < m; ++k) {
+    const double delta = b.delta[k];
+    const double s = -(b.r[k] - 0.5 * delta);
+    const double ax = s * nx, ay = s * ny, az = s * nz;
+    // vrel = v + w x a - u
+    const double vx = b.vx[k] + (b.wy[k] * az - b.wz[k] * ay) - ux;
+    const double vy = b.vy[k] + (b.wz[k] * ax - b.wx[k] * az) - uy;
+    const double vz = b.vz[k] + (b.wx[k] * ay - b.wy[k] * ax) - uz;
+    const double vn = vx * nx + vy * ny + vz * nz;
+    const double vtx = vx - vn * nx, vty = vy - vn * ny, vtz = vz - vn * nz;
+    double fx, fy, fz;
+    lane_force(law, delta, b.r[k], std::sqrt(b.m[k]), nx, ny, nz, vn, vtx, vty, vtz, dt, b.xix[k], b.xiy[k], b.xiz[k],
+               fx, fy, fz);
+    b.fx[k] = fx;
+    b.fy[k] = fy;
+    b.fz[k] = fz;
+    b.tx[k] = ay * fz - az * fy;
+    b.ty[k] = az * fx - ax * fz;
+    b.tz[k] = ax * fy - ay * fx;
   }
 }
 
@@ -486,15 +542,95 @@ void Engine::pair_kernel_impl(const Tag& law) {
   }
 }
 
-void Engine::pair_kernel(const LinearLaw& law) {
+namespace {
+LinearTag tag_of(const LinearLaw& law) {
   const LinearContactParams& p = law.p;
-  pair_kernel_impl(LinearTag{p.kn, p.kt, p.kt > 0.0 ? 1.0 / p.kt : 0.0, 2.0 * p.zeta_n * std::sqrt(p.kn), 2.0 * p.zeta_t * std::sqrt(p.kt), p.mu});
+  return {p.kn, p.kt, p.kt > 0.0 ? 1.0 / p.kt : 0.0, 2.0 * p.zeta_n * std::sqrt(p.kn), 2.0 * p.zeta_t * std::sqrt(p.kt), p.mu};
 }
-
-void Engine::pair_kernel(const HertzLaw& law) {
+HertzTag tag_of(const HertzLaw& law) {
   const HertzContactParams& p = law.p;
   constexpr double c = 1.8257418583505538;  // 2 sqrt(5/6)
-  pair_kernel_impl(HertzTag{p.e_star, p.g_star, -c * p.beta, p.mu});
+  return {p.e_star, p.g_star, -c * p.beta, p.mu};
+}
+}  // namespace
+
+void Engine::pair_kernel(const LinearLaw& law) { pair_kernel_impl(tag_of(law)); }
+
+void Engine::pair_kernel(const HertzLaw& law) { pair_kernel_impl(tag_of(law)); }
+
+bool Engine::wall_kernel() {
+  return with_contact_law(def_, [&](const auto& law) {
+    using L = std::decay_t<decltype(law)>;
+    if constexpr (std::is_same_v<L, LinearLaw> || std::is_same_v<L, HertzLaw>) {
+      wall_kernel_impl(tag_of(law));
+      return true;
+    } else {
+      return false;  // a law without a vectorised kernel: wall_forces' scalar loop
+    }
+  });
+}
+
+template <class Tag>
+void Engine::wall_kernel_impl(const Tag& particle_law) {
+  const Vec3* x = ps_.x.data();
+  const Vec3* v = ps_.v.data();
+  const Vec3* w = ps_.omega.data();
+  Vec3* __restrict f = ps_.f.data();
+  Vec3* __restrict t = ps_.torque.data();
+  thread_local WallBlock b;
+  for (std::size_t k = 0; k < walls_.size(); ++k) {
+    const PlaneWall& wall = walls_[k];
+    Tag law = particle_law;
+    law.mu = wall.friction;
+    Vec3* hist = wall_hist_[k].data();
+    const std::vector<std::uint32_t>& cand = wall_cand_[k];
+    Vec3 total = Vec3::Zero();
+    for (std::size_t c0 = 0; c0 < cand.size(); c0 += kBlock) {
+      const std::size_t c1 = std::min(cand.size(), c0 + kBlock);
+      // 1. gather the touching candidates (a candidate apart has its spring cleared)
+      int m = 0;
+      for (std::size_t c = c0; c < c1; ++c) {
+        const std::uint32_t i = cand[c];
+        const double r = ps_.radius[i];
+        const double dist = (x[i] - wall.point).dot(wall.normal);
+        if (dist >= r) {
+          hist[i].setZero();
+          continue;
+        }
+        if (ps_.inv_mass[i] == 0.0) continue;
+        b.particle[m] = i;
+        b.delta[m] = r - dist;
+        b.r[m] = r;
+        b.m[m] = ps_.mass[i];
+        b.vx[m] = v[i].x(); b.vy[m] = v[i].y(); b.vz[m] = v[i].z();
+        b.wx[m] = w[i].x(); b.wy[m] = w[i].y(); b.wz[m] = w[i].z();
+        b.xix[m] = hist[i].x(); b.xiy[m] = hist[i].y(); b.xiz[m] = hist[i].z();
+        ++m;
+      }
+      // idle lanes up to a multiple of kLanes (m = 0: no force; finite inputs)
+      const int mpad = (m + kLanes - 1) / kLanes * kLanes;
+      for (int l = m; l < mpad; ++l) {
+        b.delta[l] = 0.0; b.r[l] = 1.0; b.m[l] = 0.0;
+      }
+      // 2. the law
+      wall_block_law(b, mpad, law, wall.normal, wall.velocity, history_dt_);
+      // 3. scatter in candidate order
+      for (int l = 0; l < m; ++l) {
+        const std::uint32_t i = b.particle[l];
+        const Vec3 F(b.fx[l], b.fy[l], b.fz[l]);
+        f[i] += F;
+        t[i] += Vec3(b.tx[l], b.ty[l], b.tz[l]);
+        total -= F;
+        hist[i] = Vec3(b.xix[l], b.xiy[l], b.xiz[l]);
+        if (b.delta[l] / b.r[l] > worst_overlap_ratio_) {
+          worst_overlap_ratio_ = b.delta[l] / b.r[l];
+          worst_overlap_i_ = i;
+          worst_overlap_j_ = ParticleStore::kNone - 1 - static_cast<std::uint32_t>(k);  // plane wall k
+        }
+      }
+    }
+    wall_force_[k] = total;
+  }
 }
 
 }  // namespace hs::bonded

@@ -612,6 +612,7 @@ void Engine::wall_forces() {
   // Only the particles that can touch a wall are tested (refresh_wall_candidates); for the
   // others the loop below would find dist >= r and keep their springs at zero.
   refresh_wall_candidates();
+  if (wall_kernel()) return;  // the built-in laws (contact_kernel.cpp)
   for (std::size_t k = 0; k < walls_.size(); ++k) {
     const PlaneWall& w = walls_[k];
     Vec3 total = Vec3::Zero();

@@ -35,16 +35,20 @@ struct Pinned {
 // "calibrated" changes the springs (k_n 2.5x Eq. 1, k_s 0.05 k_n for nu = 0.3), the one water law
 // changes the drag (per wetted face), /series/pile_height_mean is new, and the vectorised bond and
 // contact kernels round differently (each checked alone against the old output: round-off only).
+// Re-pinned for issue 16 (stop 32): the plane walls' vectorised kernel rounds differently from the
+// scalar wall law (sqrt(m) sqrt(k) for sqrt(m k), the pair kernel's spring projection); against the
+// previous hashes' output the largest difference is 1.3e-12 of a dataset's largest value (snapshot
+// velocities; series 8e-14).
 constexpr Pinned kPinned[] = {
-    {"GCC 12.2.0 fma avx2 avx512f", "c4e0d8f6230fdbfd3f069f6459bdc285b47dfe182e181bc87e840a45bde19cdd",
-     "e9de4e2a7c28f61fe3647d54359ef959c99b55ab829bd3895ee01af20ac48b41"},
+    {"GCC 12.2.0 fma avx2 avx512f", "dd44b2688f1fe4324147048c48bb2d29e1652ea0ccdc668a80db421fc6718f36",
+     "ac18818af4311d7d0d372385b94992e64a6836e7d9405ec65b4d58e64e42ced8"},
 };
 // The same scene with --set material.stiffness_model=paper_eq1 (Eq. 1 springs, bonds.* strengths).
 // On the calibration's branch these were main's hashes at 1925efa (paper_eq1 = the model as it was,
 // bit for bit); since the merge the water law, the new series and the kernels' rounding move them.
 constexpr Pinned kPinnedPaperEq1[] = {
-    {"GCC 12.2.0 fma avx2 avx512f", "d9948afad1b054f22146889dbd98e98301b0f6272852f3af3cedcd8a5e7e3533",
-     "e8b5d894f1e8d1ba876eb1508e85f1e4ba30e5668a516b9561fdac79d21065bc"},
+    {"GCC 12.2.0 fma avx2 avx512f", "c852c4640c941ef850a0365826634468c9ee472aae7583ad8b02b5b9417e3fd9",
+     "46aaebf14d8be936a8eb0dab12d8883afd0ec764f5e5e44d2e464b1fb914fd8b"},
 };
 
 std::string fingerprint() {
