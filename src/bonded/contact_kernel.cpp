@@ -83,12 +83,13 @@ void Engine::refresh_wall_candidates() {
 // The pair list is a half list in cell order (build_neighbors: owned particles sorted by cell,
 // each particle's partners j > i contiguous), and each pair carries its tangential spring.
 // The loop runs in blocks of kBlock pairs:
-//   1. gather (scalar): the touching pairs of the block into structure-of-arrays scratch;
-//      pairs apart have their spring cleared, as in pair_forces;
+//   1. gather (eight pairs at a time with AVX-512, else scalar): the touching pairs of the block
+//      into structure-of-arrays scratch; pairs apart have their spring cleared, as in pair_forces;
 //   2. law (vectorised, no branches): forces, torques, new springs, overlap ratios;
 //   3. scatter (scalar, in list order): forces and torques onto the particles, springs back.
 // Each particle's force is summed in the list's order, so the result does not depend on the
-// block size or vector width and is bit-identical from run to run.
+// block size or vector width and is bit-identical from run to run. The plane walls' kernel
+// (wall_kernel_impl, at the end) does the same per wall over its candidates.
 
 namespace hs::bonded {
 

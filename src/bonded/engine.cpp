@@ -613,6 +613,8 @@ void Engine::wall_forces() {
   // others the loop below would find dist >= r and keep their springs at zero.
   refresh_wall_candidates();
   if (wall_kernel()) return;  // the built-in laws (contact_kernel.cpp)
+  // A law without a wall kernel (none of the built-in ones; kept for a new law, as pair_forces is):
+  // the scalar law per candidate.
   for (std::size_t k = 0; k < walls_.size(); ++k) {
     const PlaneWall& w = walls_[k];
     Vec3 total = Vec3::Zero();

@@ -14,6 +14,7 @@
 #include "common/types.h"
 
 #include <algorithm>
+#include <cassert>
 #include <unordered_map>
 #include <vector>
 
@@ -54,10 +55,12 @@ struct ParticleRecord {
 /// permutation of 0..order.size()-1; the elements after them stay). The permutation's cycles are
 /// followed with one element in hand, so no second array is made: a rebuild's sort touches no
 /// fresh pages (after a rebuild most particles stay where they were, and are skipped). `done` is
-/// scratch (one flag per element).
+/// scratch (one flag per element). An order that is not a permutation would not end: the callers
+/// make theirs by a counting sort of every owned particle.
 template <class T>
 void permute_in_place(std::vector<T>& a, const std::vector<std::uint32_t>& order, std::vector<char>& done) {
   const std::size_t n = order.size();
+  assert(a.size() >= n);
   done.assign(n, 0);
   for (std::size_t s = 0; s < n; ++s) {
     if (done[s] || order[s] == s) continue;
