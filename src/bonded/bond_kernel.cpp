@@ -7,6 +7,7 @@
 
 #include "engine.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -23,9 +24,8 @@ void BondBatch::pack(const std::vector<Bond>& bonds) {
   for (auto* a : {&i, &j}) a->resize(padded);
   kind.resize(padded);
   for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) a->resize(padded);
-  for (std::size_t k = 0; k < padded; ++k) {
-    // Padding lanes repeat the last bond: finite data whose results are dropped.
-    const Bond& b = bonds[k < n_ ? k : n_ - 1];
+  for (std::size_t k = 0; k < n_; ++k) {
+    const Bond& b = bonds[k];
     i[k] = b.i;
     j[k] = b.j;
     kind[k] = static_cast<std::uint8_t>(b.kind);
@@ -33,8 +33,48 @@ void BondBatch::pack(const std::vector<Bond>& bonds) {
     rjx[k] = b.ref.rj.x(); rjy[k] = b.ref.rj.y(); rjz[k] = b.ref.rj.z();
     cw[k] = b.ref.c.w(); cx[k] = b.ref.c.x(); cy[k] = b.ref.c.y(); cz[k] = b.ref.c.z();
   }
-  batch_kind.resize(padded / kLanes);
-  for (std::size_t g = 0; g < batch_kind.size(); ++g) {
+  finish(0);
+}
+
+namespace {
+
+/// Erases a[gone[k].index] from a's first n elements, keeping the order of the others: each run
+/// between two erased elements moves down once.
+template <class T>
+void erase_sorted(std::vector<T>& a, std::size_t n, const std::vector<BrokenBond>& gone) {
+  std::size_t w = gone.front().index;
+  for (std::size_t k = 0; k < gone.size(); ++k) {
+    const std::size_t from = gone[k].index + 1, to = k + 1 < gone.size() ? gone[k + 1].index : n;
+    std::copy(a.begin() + from, a.begin() + to, a.begin() + w);
+    w += to - from;
+  }
+}
+
+}  // namespace
+
+void BondBatch::erase(const std::vector<BrokenBond>& gone) {
+  if (gone.empty()) return;
+  for (auto* a : {&i, &j}) erase_sorted(*a, n_, gone);
+  erase_sorted(kind, n_, gone);
+  for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) erase_sorted(*a, n_, gone);
+  n_ -= gone.size();
+  const std::size_t padded = (n_ + kLanes - 1) / kLanes * kLanes;
+  for (auto* a : {&i, &j}) a->resize(padded);
+  kind.resize(padded);
+  for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) a->resize(padded);
+  finish(gone.front().index / kLanes);
+}
+
+void BondBatch::finish(std::size_t first_batch) {
+  // Padding lanes repeat the last bond: finite data whose results are dropped.
+  for (std::size_t k = n_; k < padded(); ++k) {
+    i[k] = i[n_ - 1]; j[k] = j[n_ - 1]; kind[k] = kind[n_ - 1];
+    rix[k] = rix[n_ - 1]; riy[k] = riy[n_ - 1]; riz[k] = riz[n_ - 1];
+    rjx[k] = rjx[n_ - 1]; rjy[k] = rjy[n_ - 1]; rjz[k] = rjz[n_ - 1];
+    cw[k] = cw[n_ - 1]; cx[k] = cx[n_ - 1]; cy[k] = cy[n_ - 1]; cz[k] = cz[n_ - 1];
+  }
+  batch_kind.resize(padded() / kLanes);
+  for (std::size_t g = first_batch; g < batch_kind.size(); ++g) {
     std::uint8_t k0 = kind[g * kLanes];
     for (std::size_t l = 1; l < kLanes; ++l)
       if (kind[g * kLanes + l] != k0) k0 = 0xff;

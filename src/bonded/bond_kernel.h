@@ -26,6 +26,7 @@
 namespace hs::bonded {
 
 struct Bond;
+struct BrokenBond;
 
 /// Structure-of-arrays copy of the bonds (see above). Arrays are padded to a multiple of kLanes.
 class BondBatch {
@@ -38,6 +39,9 @@ class BondBatch {
 
   /// Copies `bonds` (in order); kinds index `params` of bond_kernel.
   void pack(const std::vector<Bond>& bonds);
+  /// Removes the bonds `gone` (ascending indices into the copy, as bond_kernel reports them),
+  /// keeping the others' order: the copy of a bond list from which the same bonds were erased.
+  void erase(const std::vector<BrokenBond>& gone);
   /// Marks the copy stale (bonds_ reordered or edited): the next bond_forces() repacks it.
   void invalidate() { valid_ = false; }
   /// True when the copy is current for a bond list of n bonds.
@@ -54,6 +58,8 @@ class BondBatch {
   std::vector<std::uint8_t> batch_kind;
 
  private:
+  /// Padding lanes from n_ on repeat the last bond; batch kinds from batch `first_batch` on.
+  void finish(std::size_t first_batch);
   std::size_t n_ = 0;
   bool valid_ = false;
 };

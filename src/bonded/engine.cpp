@@ -289,6 +289,30 @@ double Engine::skin() const {
 
 // ---------------------------------------------------------------- neighbours
 
+// A counting sort on the lower index, then each lower index's few bonds by the higher (insertion
+// sort). The bonds are then moved in place: after a rebuild most are where they were.
+void sort_bonds_by_particle(std::vector<Bond>& bonds, std::size_t n_particles, BondSortScratch& s) {
+  const std::size_t nb = bonds.size();
+  s.start.assign(n_particles + 1, 0);
+  s.order.resize(nb);
+  s.hi.resize(nb);
+  for (const Bond& b : bonds) ++s.start[std::min(b.i, b.j) + 1];
+  for (std::size_t p = 0; p < n_particles; ++p) s.start[p + 1] += s.start[p];
+  s.fill.assign(s.start.begin(), s.start.end() - 1);
+  for (std::uint32_t k = 0; k < nb; ++k) {
+    const Bond& b = bonds[k];
+    const std::uint32_t lo = std::min(b.i, b.j), h = std::max(b.i, b.j);
+    std::uint32_t at = s.fill[lo]++;
+    for (; at > s.start[lo] && s.hi[at - 1] > h; --at) {
+      s.order[at] = s.order[at - 1];
+      s.hi[at] = s.hi[at - 1];
+    }
+    s.order[at] = k;
+    s.hi[at] = h;
+  }
+  permute_in_place(bonds, s.order, s.done);
+}
+
 void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint32_t ncells) {
   const std::size_t n = ps_.owned();
   std::vector<std::uint32_t> count(ncells + 1, 0);
@@ -309,12 +333,7 @@ void Engine::sort_spatially(const std::vector<std::uint32_t>& cell_of, std::uint
     b.i = new_of_old[b.i];
     b.j = new_of_old[b.j];
   }
-  // Walk bonds in memory order of their particles (cache locality). The order is a
-  // function of the positions only, so runs stay deterministic.
-  std::sort(bonds_.begin(), bonds_.end(), [](const Bond& a, const Bond& b) {
-    return std::min(a.i, a.j) != std::min(b.i, b.j) ? std::min(a.i, a.j) < std::min(b.i, b.j)
-                                                    : std::max(a.i, a.j) < std::max(b.i, b.j);
-  });
+  sort_bonds_by_particle(bonds_, ps_.size(), bond_sort_scratch_);
   for (auto& p : pairs_) {
     p.i = new_of_old[p.i];
     p.j = new_of_old[p.j];
@@ -793,8 +812,9 @@ void Engine::bond_forces() {
     ++broken_now_[static_cast<int>(bb.mode) - 1];
   }
   if (n_broken == 0) return;
-  std::size_t w = 0;
-  for (std::size_t r = 0; r < bonds_.size(); ++r) {
+  // Erase the broken bonds, keeping the others' order (the bonds before the first stay put).
+  std::size_t w = broken_bonds_.front().index;
+  for (std::size_t r = w; r < bonds_.size(); ++r) {
     const Bond& b = bonds_[r];
     if (static_cast<std::uint8_t>(b.kind) >= 0xfe) {
       --ps_.bond_count[b.i];
@@ -806,7 +826,7 @@ void Engine::bond_forces() {
     bonds_[w++] = b;
   }
   bonds_.resize(w);
-  bond_batch_.invalidate();
+  bond_batch_.erase(broken_bonds_);  // the same bonds out of the kernel's copy
 }
 
 void Engine::rebuild() {

@@ -157,6 +157,19 @@ struct Bond {
   BondRef ref;
 };
 
+/// Scratch of the bond sort at a rebuild (engine.cpp, sort_bonds_by_particle), kept between
+/// rebuilds so that the sort touches no fresh pages.
+struct BondSortScratch {
+  std::vector<std::uint32_t> start, fill, order, hi;
+  std::vector<char> done;
+};
+
+/// Orders bonds by their particles' local indices (the lower, then the higher) for cache locality
+/// at a rebuild. The order is a function of the positions only, so runs stay deterministic. A pair
+/// has one bond, so the keys are unique: the order is the one any sort on (min, max) gives.
+/// n_particles: one more than the largest index.
+void sort_bonds_by_particle(std::vector<Bond>& bonds, std::size_t n_particles, BondSortScratch& scratch);
+
 struct ContactPair {
   std::uint32_t i, j;
   Vec3 xi;               ///< tangential spring history
@@ -608,6 +621,7 @@ class Engine {
   // scratch for neighbour build
   std::vector<std::uint32_t> cell_start_, cell_items_, cell_of_;
   std::vector<std::uint32_t> partner_start_, partner_list_;
+  BondSortScratch bond_sort_scratch_;
 };
 
 }  // namespace hs::bonded

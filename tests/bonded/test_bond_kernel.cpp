@@ -1,14 +1,17 @@
 // The vectorised bond kernel (bond_kernel.h) against the scalar law (parallel_bond): the same
 // forces, moments and breaks to round-off, for both bond kinds mixed in one batch, with damping,
 // and for rotations beyond the series' range (scalar fallback); and a bond's result does not
-// depend on its place in the batch (lane, padding of the last batch), bit for bit.
+// depend on its place in the batch (lane, padding of the last batch), bit for bit. Also the
+// copy's upkeep: erasing broken bonds, and the bond order of a rebuild.
 #include "bonded/bond_kernel.h"
 #include "bonded/engine.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <random>
+#include <string>
 
 using namespace hs;
 using namespace hs::bonded;
@@ -156,6 +159,100 @@ TEST(BondKernel, ABondsResultDoesNotDependOnItsPlaceInTheBatch) {
     for (std::size_t i = 0; i < s.x.size(); ++i) {
       ASSERT_EQ(s.f[i], f0[i]) << "shift " << shift << " particle " << i;
       ASSERT_EQ(s.t[i], t0[i]) << "shift " << shift << " particle " << i;
+    }
+  }
+}
+
+namespace {
+
+void expect_same_batch(const BondBatch& a, const BondBatch& b, const std::string& what) {
+  ASSERT_EQ(a.size(), b.size()) << what;
+  ASSERT_EQ(a.padded(), b.padded()) << what;
+  EXPECT_EQ(a.i, b.i) << what;
+  EXPECT_EQ(a.j, b.j) << what;
+  EXPECT_EQ(a.kind, b.kind) << what;
+  EXPECT_EQ(a.batch_kind, b.batch_kind) << what;
+  for (auto m : {&BondBatch::rix, &BondBatch::riy, &BondBatch::riz, &BondBatch::rjx, &BondBatch::rjy, &BondBatch::rjz,
+                 &BondBatch::cw, &BondBatch::cx, &BondBatch::cy, &BondBatch::cz})
+    EXPECT_EQ(a.*m, b.*m) << what;
+}
+
+}  // namespace
+
+// Erasing broken bonds from the kernel's copy (Engine::bond_forces, at every step with a break)
+// gives the copy that packing the remaining bonds gives: the same arrays, padding lanes and batch
+// kinds, for erasures at the start, in runs, across batches, at the end, and down to one bond.
+TEST(BondBatch, EraseIsThePackOfTheRemainingBonds) {
+  const Scene s(203, 0.01, 2e-3, 5);
+  const std::vector<std::vector<std::uint32_t>> cases = {
+      {0}, {202}, {1, 2, 3, 4, 5}, {3, 4, 9, 77, 78, 150, 201, 202}, {0, 1, 2}, {7, 8, 9, 10, 11, 12, 13, 14}};
+  for (const auto& gone_idx : cases) {
+    BondBatch bb;
+    bb.pack(s.bonds);
+    std::vector<BrokenBond> gone;
+    std::vector<Bond> rest;
+    for (std::uint32_t k = 0, g = 0; k < s.bonds.size(); ++k) {
+      if (g < gone_idx.size() && gone_idx[g] == k) {
+        gone.push_back({k, BondFailure::Tension});
+        ++g;
+      } else {
+        rest.push_back(s.bonds[k]);
+      }
+    }
+    bb.erase(gone);
+    BondBatch packed;
+    packed.pack(rest);
+    expect_same_batch(bb, packed, "erased " + std::to_string(gone.size()) + " from " + std::to_string(gone_idx.front()));
+    EXPECT_TRUE(bb.valid_for(rest.size()));
+  }
+  // Repeated erasures down to a single bond.
+  BondBatch bb;
+  bb.pack(s.bonds);
+  std::vector<Bond> rest = s.bonds;
+  while (rest.size() > 1) {
+    std::vector<BrokenBond> gone;
+    std::vector<Bond> keep;
+    for (std::uint32_t k = 0; k < rest.size(); ++k)
+      if (k % 3 == 1 || (rest.size() < 4 && k == 0)) gone.push_back({k, BondFailure::Shear});
+      else keep.push_back(rest[k]);
+    bb.erase(gone);
+    rest = keep;
+    BondBatch packed;
+    packed.pack(rest);
+    expect_same_batch(bb, packed, "down to " + std::to_string(rest.size()));
+  }
+}
+
+// The bond order of a rebuild: by (lower index, higher index), whichever end a bond lists first;
+// the same order a comparison sort gives, for a random set of unique pairs.
+TEST(BondSort, OrdersByLowerThenHigherIndex) {
+  std::mt19937_64 rng(9);
+  const std::uint32_t n = 500;
+  std::uniform_int_distribution<std::uint32_t> u(0, n - 1);
+  std::vector<Bond> bonds;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> seen;
+  while (bonds.size() < 3000) {
+    const std::uint32_t a = u(rng), b = u(rng);
+    const auto key = std::make_pair(std::min(a, b), std::max(a, b));
+    if (a == b || std::find(seen.begin(), seen.end(), key) != seen.end()) continue;
+    seen.push_back(key);
+    Bond bd{};
+    bd.i = a;
+    bd.j = b;
+    bd.gi = bonds.size();  // identifies the bond
+    bonds.push_back(bd);
+  }
+  std::vector<Bond> expected = bonds;
+  std::sort(expected.begin(), expected.end(), [](const Bond& x, const Bond& y) {
+    return std::make_pair(std::min(x.i, x.j), std::max(x.i, x.j)) < std::make_pair(std::min(y.i, y.j), std::max(y.i, y.j));
+  });
+  BondSortScratch scratch;
+  for (int pass = 0; pass < 2; ++pass) {  // the second pass: already sorted, scratch reused
+    sort_bonds_by_particle(bonds, n, scratch);
+    ASSERT_EQ(bonds.size(), expected.size());
+    for (std::size_t k = 0; k < bonds.size(); ++k) {
+      ASSERT_EQ(bonds[k].gi, expected[k].gi) << "pass " << pass << " position " << k;
+      ASSERT_EQ(bonds[k].i, expected[k].i);
     }
   }
 }
