@@ -3,10 +3,11 @@
 // Engine::bonds_ (std::vector<Bond>) stays the authority on bonds: their particles (local index and
 // global id), kind and reference state (BondRef: lever arms ri, rj in the body frames, relative
 // orientation c). BondBatch is a structure-of-arrays copy of it for the kernel, in the same order,
-// remade from bonds_ whenever bonds_ may have changed (neighbour rebuild, breaks): nothing in it is
-// state of its own. The law is the one of bond_parallel.h (parallel_bond); the kernel evaluates
-// its formulas for kLanes bonds at once in SIMD registers (GCC vector extensions: AVX2 ymm with
-// -march=native, two SSE2 halves in a portable build).
+// remade from bonds_ at every neighbour rebuild and edited like it after breaks (erase): nothing in
+// it is state of its own. The law is the one of bond_parallel.h (parallel_bond); the kernel evaluates
+// its formulas for kLanes bonds at once in SIMD registers (GCC vector extensions: 8 lanes in AVX-512
+// zmm or 4 in AVX2 ymm with -march=native, two SSE2 halves in a portable build; each lane's
+// operations are the same at any width, so the width does not change results).
 //
 // Results do not depend on where a bond sits in the batch, nor on the rank count: every lane runs
 // the same instructions, the padding lanes of the last batch repeat a real bond and are dropped,
@@ -33,6 +34,8 @@ class BondBatch {
  public:
 #ifdef HS_BOND_LANES
   static constexpr std::size_t kLanes = HS_BOND_LANES;
+#elif defined(__AVX512F__)
+  static constexpr std::size_t kLanes = 8;
 #else
   static constexpr std::size_t kLanes = 4;
 #endif
