@@ -8,6 +8,7 @@
 #include "engine.h"
 
 #include <algorithm>
+#include <cassert>
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
@@ -54,6 +55,10 @@ void erase_sorted(std::vector<T>& a, std::size_t n, const std::vector<BrokenBond
 
 void BondBatch::erase(const std::vector<BrokenBond>& gone) {
   if (gone.empty()) return;
+  assert(valid_ && gone.back().index < n_);
+  assert(std::adjacent_find(gone.begin(), gone.end(), [](const BrokenBond& a, const BrokenBond& b) {
+           return a.index >= b.index;
+         }) == gone.end() && "strictly ascending indices");
   for (auto* a : {&i, &j}) erase_sorted(*a, n_, gone);
   erase_sorted(kind, n_, gone);
   for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) erase_sorted(*a, n_, gone);

@@ -5,6 +5,7 @@
 #include "common/ice_formulas.h"
 
 #include <algorithm>
+#include <cassert>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -276,7 +277,10 @@ void sort_bonds_by_particle(std::vector<Bond>& bonds, std::size_t n_particles, B
   s.start.assign(n_particles + 1, 0);
   s.order.resize(nb);
   s.hi.resize(nb);
-  for (const Bond& b : bonds) ++s.start[std::min(b.i, b.j) + 1];
+  for (const Bond& b : bonds) {
+    assert(std::max(b.i, b.j) < n_particles);
+    ++s.start[std::min(b.i, b.j) + 1];
+  }
   for (std::size_t p = 0; p < n_particles; ++p) s.start[p + 1] += s.start[p];
   s.fill.assign(s.start.begin(), s.start.end() - 1);
   for (std::uint32_t k = 0; k < nb; ++k) {

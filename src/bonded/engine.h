@@ -167,7 +167,7 @@ struct BondSortScratch {
 /// Orders bonds by their particles' local indices (the lower, then the higher) for cache locality
 /// at a rebuild. The order is a function of the positions only, so runs stay deterministic. A pair
 /// has one bond, so the keys are unique: the order is the one any sort on (min, max) gives.
-/// n_particles: one more than the largest index.
+/// n_particles: greater than every bond's index (Engine passes ps_.size(), ghosts included).
 void sort_bonds_by_particle(std::vector<Bond>& bonds, std::size_t n_particles, BondSortScratch& scratch);
 
 struct ContactPair {

@@ -8,7 +8,7 @@
 // (x x + z z) + (y y + w w), then sqrt and four divisions). This file is compiled with
 // -ffp-contract=off (src/bonded/CMakeLists.txt), so the compiler fuses nothing else: the fused
 // operations are the explicit _mm256_fmadd/fnmadd calls below. With GCC 12 the result is
-// therefore bit-identical to the scalar function (tests/bonded/test_orientation.cpp checks it, so
+// therefore bit-identical to the scalar function (IntegrateKernel.Orientation* in tests/bonded/test_integrate_kernel.cpp check it, so
 // the pinned runs keep their hashes); the scalar loop cost ~22 ns per particle, almost all of it
 // the series' and the norm's divisions, which four lanes share.
 //

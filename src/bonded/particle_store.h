@@ -56,7 +56,7 @@ struct ParticleRecord {
 /// followed with one element in hand, so no second array is made: a rebuild's sort touches no
 /// fresh pages (after a rebuild most particles stay where they were, and are skipped). `done` is
 /// scratch (one flag per element). An order that is not a permutation would not end: the callers
-/// make theirs by a counting sort of every owned particle.
+/// make theirs by a counting sort of every owned particle, or of the bonds.
 template <class T>
 void permute_in_place(std::vector<T>& a, const std::vector<std::uint32_t>& order, std::vector<char>& done) {
   const std::size_t n = order.size();

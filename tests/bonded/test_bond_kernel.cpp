@@ -30,7 +30,10 @@ struct Scene {
   std::vector<Quat> q;
   std::vector<Bond> bonds;
 
-  Scene(int n_bonds, double trans, double rot, std::uint64_t seed) {
+  /// Bond kinds: kMixed (every third bond kind 1: batches mix kinds), kRuns (runs of five of one
+  /// kind: some batches of one kind, some mixed), kSingle (all kind 0: the kernel's one-kind path).
+  enum Kinds { kMixed, kRuns, kSingle };
+  Scene(int n_bonds, double trans, double rot, std::uint64_t seed, Kinds kinds = kMixed) {
     std::mt19937_64 rng(seed);
     std::uniform_real_distribution<double> u(-1.0, 1.0);
     auto rnd = [&] { return Vec3(u(rng), u(rng), u(rng)); };
@@ -42,7 +45,8 @@ struct Scene {
       bd.j = bd.i + 1;
       bd.gi = bd.i;
       bd.gj = bd.j;
-      bd.kind = static_cast<BondKind>(b % 3 == 2 ? 1 : 0);  // both kinds, mixed within batches
+      const int kind = kinds == kMixed ? (b % 3 == 2 ? 1 : 0) : kinds == kRuns ? (b / 5) % 2 : 0;
+      bd.kind = static_cast<BondKind>(kind);
       bd.ref = BondRef::at_rest(xi, qi, 0.25, xj, qj, 0.25);
       bonds.push_back(bd);
       x.push_back(xi + trans * rnd());
@@ -73,9 +77,11 @@ void params(ParallelBondParams p[2], double strength) {
 TEST(BondKernel, MatchesTheScalarLawForBothKindsWithDamping) {
   ParallelBondParams p[2];
   params(p, INFINITY);
-  // Small rotations (series lanes, the hot path) and large ones (up to 0.3 rad: scalar fallback).
+  // Small rotations (series lanes, the hot path) and large ones (up to 0.3 rad: scalar fallback);
+  // kinds mixed in every batch, and one kind throughout (the path of a one-material run).
+  for (auto kinds : {Scene::kMixed, Scene::kSingle})
   for (double rot : {2e-3, 0.3}) {
-    Scene s(203, 0.01, rot, 11);  // 203: the last batch is padded
+    Scene s(203, 0.01, rot, 11, kinds);  // 203: the last batch is padded
     BondBatch bb;
     bb.pack(s.bonds);
     std::vector<BrokenBond> broken;
@@ -90,8 +96,8 @@ TEST(BondKernel, MatchesTheScalarLawForBothKindsWithDamping) {
       worst_f = std::max({worst_f, (s.f[b.j] - r.fj).norm() / fs, (s.f[b.i] + r.fj).norm() / fs});
       worst_t = std::max({worst_t, (s.t[b.i] - r.ti).norm() / ts, (s.t[b.j] - r.tj).norm() / ts});
     }
-    std::printf("max rotation %.0e rad: kernel vs scalar law, force %.2e, moment %.2e (relative)\n", rot, worst_f,
-                worst_t);
+    std::printf("kinds %d, max rotation %.0e rad: kernel vs scalar law, force %.2e, moment %.2e (relative)\n",
+                static_cast<int>(kinds), rot, worst_f, worst_t);
     // Measured 2.1e-14 / 4.9e-14 at 2e-3 rad (the gap u = d + a_j - a_i is ~50x smaller than its
     // terms, so both laws lose the same ~2 digits, differently rounded); 0 / 0 at 0.3 rad, where
     // every bond leaves the series' range and takes the scalar law.
@@ -181,12 +187,16 @@ void expect_same_batch(const BondBatch& a, const BondBatch& b, const std::string
 
 // Erasing broken bonds from the kernel's copy (Engine::bond_forces, at every step with a break)
 // gives the copy that packing the remaining bonds gives: the same arrays, padding lanes and batch
-// kinds, for erasures at the start, in runs, across batches, at the end, and down to one bond.
+// kinds, for erasures at the start, in runs, across batches, at the end, of every bond, and down
+// to one bond; with kinds mixed in every batch and in runs (batches of one kind and mixed ones).
 TEST(BondBatch, EraseIsThePackOfTheRemainingBonds) {
-  const Scene s(203, 0.01, 2e-3, 5);
+  std::vector<std::uint32_t> all(203);
+  for (std::uint32_t k = 0; k < all.size(); ++k) all[k] = k;
   const std::vector<std::vector<std::uint32_t>> cases = {
-      {0}, {202}, {1, 2, 3, 4, 5}, {3, 4, 9, 77, 78, 150, 201, 202}, {0, 1, 2}, {7, 8, 9, 10, 11, 12, 13, 14}};
+      {0}, {202}, {1, 2, 3, 4, 5}, {3, 4, 9, 77, 78, 150, 201, 202}, {0, 1, 2}, {7, 8, 9, 10, 11, 12, 13, 14}, {4}, all};
+  for (auto kinds : {Scene::kMixed, Scene::kRuns})
   for (const auto& gone_idx : cases) {
+    const Scene s(203, 0.01, 2e-3, 5, kinds);
     BondBatch bb;
     bb.pack(s.bonds);
     std::vector<BrokenBond> gone;
@@ -202,10 +212,23 @@ TEST(BondBatch, EraseIsThePackOfTheRemainingBonds) {
     bb.erase(gone);
     BondBatch packed;
     packed.pack(rest);
-    expect_same_batch(bb, packed, "erased " + std::to_string(gone.size()) + " from " + std::to_string(gone_idx.front()));
+    expect_same_batch(bb, packed, "kinds " + std::to_string(kinds) + ", erased " + std::to_string(gone.size()) + " from " +
+                                      std::to_string(gone_idx.front()));
     EXPECT_TRUE(bb.valid_for(rest.size()));
   }
+  {
+    BondBatch bb;  // every bond erased
+    bb.pack(Scene(203, 0.01, 2e-3, 5).bonds);
+    std::vector<BrokenBond> gone;
+    for (std::uint32_t k : all) gone.push_back({k, BondFailure::Tension});
+    bb.erase(gone);
+    EXPECT_EQ(bb.size(), 0u);
+    EXPECT_EQ(bb.padded(), 0u);
+    EXPECT_TRUE(bb.batch_kind.empty());
+    EXPECT_TRUE(bb.valid_for(0));
+  }
   // Repeated erasures down to a single bond.
+  const Scene s(203, 0.01, 2e-3, 5, Scene::kRuns);
   BondBatch bb;
   bb.pack(s.bonds);
   std::vector<Bond> rest = s.bonds;
