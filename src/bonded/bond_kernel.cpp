@@ -21,10 +21,7 @@ namespace hs::bonded {
 
 void BondBatch::pack(const std::vector<Bond>& bonds) {
   n_ = bonds.size();
-  const std::size_t padded = (n_ + kLanes - 1) / kLanes * kLanes;
-  for (auto* a : {&i, &j}) a->resize(padded);
-  kind.resize(padded);
-  for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) a->resize(padded);
+  size_arrays();
   for (std::size_t k = 0; k < n_; ++k) {
     const Bond& b = bonds[k];
     i[k] = b.i;
@@ -63,11 +60,15 @@ void BondBatch::erase(const std::vector<BrokenBond>& gone) {
   erase_sorted(kind, n_, gone);
   for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) erase_sorted(*a, n_, gone);
   n_ -= gone.size();
+  size_arrays();
+  finish(gone.front().index / kLanes);
+}
+
+void BondBatch::size_arrays() {
   const std::size_t padded = (n_ + kLanes - 1) / kLanes * kLanes;
   for (auto* a : {&i, &j}) a->resize(padded);
   kind.resize(padded);
   for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) a->resize(padded);
-  finish(gone.front().index / kLanes);
 }
 
 void BondBatch::finish(std::size_t first_batch) {

@@ -61,6 +61,8 @@ class BondBatch {
   std::vector<std::uint8_t> batch_kind;
 
  private:
+  /// Every array to n_ rounded up to a multiple of kLanes.
+  void size_arrays();
   /// Padding lanes from n_ on repeat the last bond; batch kinds from batch `first_batch` on.
   void finish(std::size_t first_batch);
   std::size_t n_ = 0;
