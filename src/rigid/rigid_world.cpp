@@ -37,6 +37,7 @@ struct BlockSlot {
   // Far sleep (RigidWorldDef::far_sleep).
   bool asleep = false;
   double still = 0.0;  // s the block and its neighbours have been still
+  Vec3 centre = Vec3::Zero();  // while asleep: its pose's origin (update_sleep reads it, not the body)
 };
 
 struct MeshSlot {
@@ -53,6 +54,23 @@ struct MeshSlot {
 };
 
 using detail::kMeshTag;  // user index 2 of a kinematic mesh body (canonical_world.h)
+
+// Far sleep marks a sleeping block's broadphase proxy with this filter-group bit, so that the
+// narrowphase can pass over a pair of two sleeping blocks on the proxies alone. Every block's
+// group already has DefaultFilter set and every mask is AllFilter or AllFilter minus StaticFilter,
+// so the bit never changes which pairs the broadphase makes.
+constexpr int kSleepingProxyBit = 1 << 30;
+
+// The dispatcher's near callback under far sleep. Bullet's dispatch visits every overlapping pair;
+// on the paper-size ridge nearly all are pairs of two sleeping blocks, for which its
+// needsCollision is false (neither is active) after reading both bodies -- 16 % of an idle
+// hybrid step. Here such a pair is recognised on its two proxies and skipped; any other pair takes
+// Bullet's own path, so the contacts made are the same.
+void far_sleep_near_callback(btBroadphasePair& pair, btCollisionDispatcher& d, const btDispatcherInfo& info) {
+  if ((pair.m_pProxy0->m_collisionFilterGroup & pair.m_pProxy1->m_collisionFilterGroup & kSleepingProxyBit) != 0)
+    return;
+  btCollisionDispatcher::defaultNearCallback(pair, d, info);
+}
 
 // Friction of a contact: a mesh imposes its own coefficient; two blocks meet with the
 // product of their stored square roots (see add_block).
@@ -91,7 +109,7 @@ struct RigidWorld::Impl {
   std::unique_ptr<btDefaultCollisionConfiguration> config;
   std::unique_ptr<btCollisionDispatcher> dispatcher;
   std::unique_ptr<btDbvtBroadphase> broadphase;
-  std::unique_ptr<btSequentialImpulseConstraintSolver> solver;
+  std::unique_ptr<detail::PooledSolver> solver;
   std::unique_ptr<detail::CanonicalWorld> world;  // solves in a fixed order (canonical_world.h)
   std::vector<btPersistentManifold*> manifolds_scratch;
 
@@ -109,6 +127,7 @@ struct RigidWorld::Impl {
   std::vector<std::pair<Vec3, Vec3>> wake_boxes;
   std::vector<char> moving, woken, reset, moving_seen;  // per block slot, scratch of update_sleep
   std::vector<std::uint32_t> adj_start, adj, bfs_a, bfs_b;
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;  // scratch of update_sleep
   std::size_t asleep_count = 0;
   // contact_forces(): every block's contact forces of the last sub-step, built on first use.
   std::vector<std::uint32_t> cf_start;
@@ -118,6 +137,25 @@ struct RigidWorld::Impl {
   // set_joint_order).
   std::uint64_t joints_version = 0, jo_version = UINT64_MAX;
   std::vector<std::uint32_t> jo_start, jo_list;
+  // The intact joints in slot order as (slot, block a, block b): what check_joints and the far-sleep
+  // graph walk every sub-step, without a pointer per joint (JointSlot lives on the heap). Rebuilt
+  // when the joints changed (joints_version).
+  struct IntactJoint {
+    std::uint32_t slot, a, b;
+  };
+  std::uint64_t ij_version = UINT64_MAX;
+  std::vector<IntactJoint> intact;
+  const std::vector<IntactJoint>& intact_list() {
+    if (ij_version != joints_version) {
+      intact.clear();
+      for (const auto& jp : joints) {
+        const JointSlot& j = *jp;
+        if (j.alive && !j.broken && j.constraint) intact.push_back({j.slot, j.a.index, j.b.index});
+      }
+      ij_version = joints_version;
+    }
+    return intact;
+  }
 
   BlockSlot& block(BlockId id) {
     if (id.index >= blocks.size() || !blocks[id.index].alive ||
@@ -203,12 +241,14 @@ struct RigidWorld::Impl {
   }
 
   void check_joints() {
-    for (auto& jp : joints) {
-      JointSlot& j = *jp;
-      if (!j.alive || j.broken || !j.constraint) continue;
+    // Slot order, as over `joints`; a joint broken here leaves the list stale until the loop ends
+    // (drop_constraint bumps joints_version), hence the check of `broken` below.
+    for (const IntactJoint& ij : intact_list()) {
       // Two sleeping blocks: the joint was not solved, its feedback and pose are unchanged since
       // it was last checked (and held).
-      if (blocks[j.a.index].asleep && blocks[j.b.index].asleep) continue;
+      if (blocks[ij.a].asleep && blocks[ij.b].asleep) continue;
+      JointSlot& j = *joints[ij.slot];
+      if (!j.alive || j.broken || !j.constraint) continue;
       const btRigidBody& ba = *blocks[j.a.index].body;
       const Vec3 n = from_bt(ba.getWorldTransform().getBasis() * to_bt(j.normal_in_a));
       const Vec3 fb = from_bt(j.feedback.m_appliedForceBodyB);
@@ -244,6 +284,8 @@ struct RigidWorld::Impl {
     b.setCollisionFlags(b.getCollisionFlags() | btCollisionObject::CF_STATIC_OBJECT);
     b.forceActivationState(ISLAND_SLEEPING);
     world->updateSingleAabb(&b);  // a static box at its pose (a restored world computes the same)
+    b.getBroadphaseHandle()->m_collisionFilterGroup |= kSleepingProxyBit;
+    s.centre = from_bt(b.getWorldTransform().getOrigin());
     s.asleep = true;
     ++asleep_count;
   }
@@ -253,6 +295,7 @@ struct RigidWorld::Impl {
     btRigidBody& b = *s.body;
     b.setCollisionFlags(b.getCollisionFlags() & ~btCollisionObject::CF_STATIC_OBJECT);
     b.forceActivationState(DISABLE_DEACTIVATION);
+    b.getBroadphaseHandle()->m_collisionFilterGroup &= ~kSleepingProxyBit;
     s.asleep = false;
     --asleep_count;
   }
@@ -287,37 +330,8 @@ struct RigidWorld::Impl {
       if (!s.asleep) moving[k] = block_moving(s);
       const bool loaded = !s.ext_force.isZero(0.0) || !s.ext_torque.isZero(0.0) || !s.imp_linear.isZero(0.0) ||
                           !s.imp_angular.isZero(0.0);
-      if (loaded || in_wake_zone(from_bt(s.body->getWorldTransform().getOrigin()))) woken[k] = 1;
-    }
-    // The neighbour graph: blocks touching (a manifold with a point) or jointed (intact joint).
-    adj_start.assign(n + 1, 0);
-    auto for_each_edge = [&](auto&& f) {
-      const int nm = dispatcher->getNumManifolds();
-      for (int k = 0; k < nm; ++k) {
-        const btPersistentManifold* man = dispatcher->getManifoldByIndexInternal(k);
-        if (man->getNumContacts() == 0 || !is_block(man->getBody0()) || !is_block(man->getBody1())) continue;
-        const auto a = static_cast<std::size_t>(man->getBody0()->getUserIndex());
-        const auto b = static_cast<std::size_t>(man->getBody1()->getUserIndex());
-        if (!blocks[a].fixed && !blocks[b].fixed) f(a, b);
-      }
-      for (const auto& jp : joints) {
-        const JointSlot& j = *jp;
-        if (!j.alive || j.broken || !j.constraint) continue;
-        if (!blocks[j.a.index].fixed && !blocks[j.b.index].fixed) f(j.a.index, j.b.index);
-      }
-    };
-    for_each_edge([&](std::size_t a, std::size_t b) {
-      ++adj_start[a + 1];
-      ++adj_start[b + 1];
-    });
-    for (std::size_t k = 0; k < n; ++k) adj_start[k + 1] += adj_start[k];
-    adj.resize(adj_start[n]);
-    {
-      std::vector<std::uint32_t> fill(adj_start.begin(), adj_start.end() - 1);
-      for_each_edge([&](std::size_t a, std::size_t b) {
-        adj[fill[a]++] = static_cast<std::uint32_t>(b);
-        adj[fill[b]++] = static_cast<std::uint32_t>(a);
-      });
+      const Vec3 c = s.asleep ? s.centre : from_bt(s.body->getWorldTransform().getOrigin());
+      if (loaded || in_wake_zone(c)) woken[k] = 1;
     }
     // Every block within wake_hops contacts or joints of a moving block (or of one the caller loads
     // now) is woken, or kept from falling asleep: the solver carries an impulse a few blocks per
@@ -331,6 +345,37 @@ struct RigidWorld::Impl {
     std::vector<char>& seen = moving_seen;
     seen.assign(n, 0);
     for (const std::uint32_t k : front) seen[k] = 1;
+    if (!front.empty() && def.far_sleep.wake_hops > 0) {
+      // The neighbour graph (none needed without a seed): blocks touching (a manifold with a
+      // point) or jointed (an intact joint), as an edge list (one pass over the manifolds) turned
+      // into adjacency lists by counting. The BFS gives the same sets in any edge order.
+      edges.clear();
+      const int nm = dispatcher->getNumManifolds();
+      for (int k = 0; k < nm; ++k) {
+        const btPersistentManifold* man = dispatcher->getManifoldByIndexInternal(k);
+        if (man->getNumContacts() == 0 || !is_block(man->getBody0()) || !is_block(man->getBody1())) continue;
+        const auto a = static_cast<std::uint32_t>(man->getBody0()->getUserIndex());
+        const auto b = static_cast<std::uint32_t>(man->getBody1()->getUserIndex());
+        if (!blocks[a].fixed && !blocks[b].fixed) edges.emplace_back(a, b);
+      }
+      for (const IntactJoint& j : intact_list())
+        if (!blocks[j.a].fixed && !blocks[j.b].fixed) edges.emplace_back(j.a, j.b);
+      adj_start.assign(n + 1, 0);
+      for (const auto& [a, b] : edges) {
+        ++adj_start[a + 1];
+        ++adj_start[b + 1];
+      }
+      for (std::size_t k = 0; k < n; ++k) adj_start[k + 1] += adj_start[k];
+      adj.resize(adj_start[n]);
+      {
+        std::vector<std::uint32_t>& fill = bfs_b;  // free until the BFS
+        fill.assign(adj_start.begin(), adj_start.end() - 1);
+        for (const auto& [a, b] : edges) {
+          adj[fill[a]++] = b;
+          adj[fill[b]++] = a;
+        }
+      }
+    }
     for (int hop = 0; hop < def.far_sleep.wake_hops && !front.empty(); ++hop) {
       next.clear();
       for (const std::uint32_t a : front)
@@ -422,7 +467,7 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   m.config = std::make_unique<btDefaultCollisionConfiguration>();
   m.dispatcher = std::make_unique<btCollisionDispatcher>(m.config.get());
   m.broadphase = std::make_unique<btDbvtBroadphase>();
-  m.solver = std::make_unique<btSequentialImpulseConstraintSolver>();
+  m.solver = std::make_unique<detail::PooledSolver>();
   m.world = std::make_unique<detail::CanonicalWorld>(m.dispatcher.get(), m.broadphase.get(), m.solver.get(),
                                                      m.config.get());
   m.world->setGravity(to_bt(def.gravity));
@@ -446,6 +491,7 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
       throw InputError("rigid/far_sleep/still_time", "must be a finite time >= 0 (s)");
     m.world->managed_sleep = true;
     m.world->setForceUpdateAllAabbs(false);  // sleeping blocks keep theirs
+    m.dispatcher->setNearCallback(&far_sleep_near_callback);
   }
   if (def.fixed_friction_directions)
     m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |
@@ -605,6 +651,18 @@ void RigidWorld::substep() {
     ms.origin += h * ms.velocity;
     ms.body->setWorldTransform(btTransform(btQuaternion::getIdentity(), to_bt(ms.origin)));
   }
+  if (m.world->managed_sleep) {
+    // The joints the solver takes (CanonicalWorld::awake_joints): intact, with a block that is
+    // neither fixed nor asleep -- what its filter over joint_order finds (no constraint is ever
+    // disabled here: the breaking threshold stays infinite, check_joints breaks them).
+    auto& aj = m.world->awake_joints;
+    aj.clear();
+    for (const Impl::IntactJoint& ij : m.intact_list()) {
+      const BlockSlot& a = m.blocks[ij.a];
+      const BlockSlot& b = m.blocks[ij.b];
+      if ((!a.fixed && !a.asleep) || (!b.fixed && !b.asleep)) aj.push_back(m.joints[ij.slot]->constraint.get());
+    }
+  }
   // maxSubSteps = 0: exactly one internal step of h; forces are cleared afterwards.
   m.world->stepSimulation(h, 0, h);
   m.check_joints();
@@ -647,6 +705,7 @@ void RigidWorld::set_velocity(BlockId id, const Vec3& v, const Vec3& w) {
 void RigidWorld::set_pose(BlockId id, const Vec3& x, const Quat& q) {
   BlockSlot& s = impl_->block(id);
   s.body->setWorldTransform(btTransform(to_bt(q.normalized()), to_bt(x)));
+  s.centre = x;  // read by far sleep while the block sleeps
   // Keep the broadphase in step for static blocks moved by the caller.
   impl_->world->updateSingleAabb(s.body.get());
 }
