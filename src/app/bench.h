@@ -24,6 +24,9 @@ struct BenchOptions {
   std::uint64_t steps = 0;
   /// hybrid: every block stepped at every rigid step (the far-sleep rule off), for comparison.
   bool no_far_sleep = false;
+  /// hybrid: the pier and the particle sheet 300 m from the ridge (nothing touches a block, every
+  /// block asleep): what holding the ridge costs when nothing happens near it.
+  bool idle = false;
 };
 
 /// Runs benchmark `name`, prints its JSON result (one object, one line) to `out`.

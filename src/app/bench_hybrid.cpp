@@ -9,6 +9,9 @@
 // hybrid mode. Every block of the file is present (those inside the pier aside). Ice, blocks and
 // water have the density and friction the ridge was generated with (the file's), the blocks lie
 // where the file has them: the ridge is as much at rest as its generation left it.
+// With --idle the sheet and the pier lie 300 m further along -x (the pier parked): nothing touches a
+// block, far sleep keeps every block asleep, and the rigid world's time is what holding the ridge
+// costs by itself (the work over every block, pair, manifold and joint per rigid step).
 // Timed: `steps` DEM steps after set-up; reported: the rigid world's ms per rigid step, the DEM's ms
 // per step, the bridge's, the rigid world's share of the wall time of a hybrid step, and the awake
 // blocks and those of them moving faster than the far-sleep speed (what keeps the rest awake).
@@ -72,14 +75,15 @@ std::string ridge_path(const BenchOptions& opt) {
 nlohmann::json vec(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
 
 /// The bench scene (see the top of this file) for the ridge in `r` (file `path`).
-nlohmann::json bench_scene(const rigid::RidgeResult& r, const std::string& path, bool far_sleep) {
+nlohmann::json bench_scene(const rigid::RidgeResult& r, const std::string& path, bool far_sleep, bool idle) {
   double ymin = 1e30, ymax = -1e30;
   for (const auto& b : r.blocks) {
     ymin = std::min(ymin, b.position.y());
     ymax = std::max(ymax, b.position.y());
   }
   const double yc = std::round(0.5 * (ymin + ymax));
-  const double x0 = -26.5, x1 = 0.0, w = 16.0;    // the particle sheet (the keel cone scene's)
+  const double away = idle ? -300.0 : 0.0;        // --idle: sheet and pier far from the ridge
+  const double x0 = -26.5 + away, x1 = 0.0 + away, w = 16.0;  // the particle sheet (the keel cone scene's)
   const double y0 = yc - 0.5 * w, y1 = yc + 0.5 * w;
   const double gap = 0.5;                          // between the sheet and the fixed ice cover
   // The ridge's own world: the blocks where the file has them (no offset), with the density,
@@ -138,7 +142,7 @@ nlohmann::json bench_scene(const rigid::RidgeResult& r, const std::string& path,
           {"center_x", 0.0}}}}},
       {"walls", {{{"name", "far_end"}, {"point", {x1, 0, 0}}, {"normal", {-1, 0, 0}}, {"friction", 0.1}}}},
       {"structure",
-       {{"name", "pier"}, {"type", "pier"}, {"position", {-34.0, yc, 0}}, {"velocity", {0.4, 0, 0}}, {"friction", 0.1}}},
+       {{"name", "pier"}, {"type", "pier"}, {"position", {-34.0 + away, yc, 0}}, {"velocity", {idle ? 0.0 : 0.4, 0, 0}}, {"friction", 0.1}}},
       {"blocks", blocks}};
 }
 
@@ -148,7 +152,7 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   const auto t0 = Clock::now();
   const std::string path = ridge_path(opt);
   const rigid::RidgeResult ridge = io::load_ridge(path);
-  scene::Scene s = scene::parse_scene(bench_scene(ridge, path, !opt.no_far_sleep));
+  scene::Scene s = scene::parse_scene(bench_scene(ridge, path, !opt.no_far_sleep, opt.idle));
   // The paper-size ridge is a standalone one (generated under fixed boxes, not this sheet): timed
   // here, not asked to be at rest, so the run's refusal of such a file is waived.
   s.blocks.check_ridge_generation = false;
@@ -193,6 +197,7 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   j["joints"] = world.joint_count();
   j["particles"] = sim.engine().global_particle_count();
   j["far_sleep"] = !opt.no_far_sleep;
+  j["idle"] = opt.idle;
   // the world's ice and water: the ridge file's own (its generation's), so that it is at rest
   j["ice_density"] = s.material.density;
   j["friction"] = s.material.friction;

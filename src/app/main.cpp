@@ -114,6 +114,9 @@ int main(int argc, char** argv) {
   bench->add_option("--steps", bench_opt.steps, "hybrid: DEM steps timed (default 200)");
   bench->add_flag("--no-far-sleep", bench_opt.no_far_sleep,
                   "hybrid: step every block at every rigid step (the far-sleep rule off), for comparison");
+  bench->add_flag("--idle", bench_opt.idle,
+                  "hybrid: pier and particle sheet 300 m from the ridge, every block asleep: the cost of holding "
+                  "the ridge while nothing happens near it");
 
   try {
     app.parse(argc, argv);
