@@ -59,11 +59,12 @@ inline void sorted_manifolds(btDispatcher* d, std::vector<btPersistentManifold*>
 }
 
 /// Bullet's sequential-impulse solver with its scratch pools kept at least 25 % above their
-/// last use. Bullet sizes a pool to exactly the rows of the step (btAlignedObjectArray::reserve
-/// allocates no more than asked), so every step that needs one row more than any before it copies
-/// the whole pool to fresh pages -- under far sleep, while the awake set grows, that was every
-/// rigid step (page faults and the memset of new rows: ~17 % of a hybrid step on the paper-size
-/// ridge). Only the capacities change: the same rows are solved in the same order.
+/// last use. Bullet sizes the body, joint-row and order pools to exactly the step's need
+/// (resizeNoInitialize -> reserve allocates no more than asked), so every step that needs one row
+/// more than any before copies the whole pool to fresh pages -- under far sleep, while the awake
+/// set grows, that was every rigid step (page faults and the memset of new rows: ~17 % of a hybrid
+/// step on the paper-size ridge). Only the capacities change: the same rows are solved in the same
+/// order.
 class PooledSolver final : public btSequentialImpulseConstraintSolver {
  public:
   btScalar solveGroupCacheFriendlyFinish(btCollisionObject** bodies, int numBodies,
@@ -171,6 +172,9 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
                                      static_cast<int>(constraints_.size()), info, m_debugDrawer, d);
     m_constraintSolver->allSolved(info, m_debugDrawer);
   }
+
+  /// The contact manifolds of the last solve (those with an awake body), in solve order.
+  const std::vector<btPersistentManifold*>& solved_manifolds() const { return manifolds_; }
 
  private:
   std::vector<btCollisionObject*> bodies_;

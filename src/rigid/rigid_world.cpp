@@ -37,7 +37,10 @@ struct BlockSlot {
   // Far sleep (RigidWorldDef::far_sleep).
   bool asleep = false;
   double still = 0.0;  // s the block and its neighbours have been still
-  Vec3 centre = Vec3::Zero();  // while asleep: its pose's origin (update_sleep reads it, not the body)
+  // While asleep: its body's origin, kept equal to it (put_to_sleep, set_pose, and after every
+  // solve for the sleeping blocks the solver touched: error (4) in docs/rigid.md), so that
+  // update_sleep need not read every sleeping body.
+  Vec3 centre = Vec3::Zero();
 };
 
 struct MeshSlot {
@@ -56,9 +59,9 @@ struct MeshSlot {
 using detail::kMeshTag;  // user index 2 of a kinematic mesh body (canonical_world.h)
 
 // Far sleep marks a sleeping block's broadphase proxy with this filter-group bit, so that the
-// narrowphase can pass over a pair of two sleeping blocks on the proxies alone. Every block's
-// group already has DefaultFilter set and every mask is AllFilter or AllFilter minus StaticFilter,
-// so the bit never changes which pairs the broadphase makes.
+// narrowphase can pass over a pair of two sleeping blocks on the proxies alone. Only dynamic blocks
+// sleep, and their group already has DefaultFilter set, which every mask (AllFilter, or AllFilter
+// minus StaticFilter) has too: the bit never changes which pairs the broadphase makes.
 constexpr int kSleepingProxyBit = 1 << 30;
 
 // The dispatcher's near callback under far sleep. Bullet's dispatch visits every overlapping pair;
@@ -652,19 +655,38 @@ void RigidWorld::substep() {
     ms.body->setWorldTransform(btTransform(btQuaternion::getIdentity(), to_bt(ms.origin)));
   }
   if (m.world->managed_sleep) {
-    // The joints the solver takes (CanonicalWorld::awake_joints): intact, with a block that is
-    // neither fixed nor asleep -- what its filter over joint_order finds (no constraint is ever
-    // disabled here: the breaking threshold stays infinite, check_joints breaks them).
+    // The joints the solver takes (CanonicalWorld::awake_joints): intact, enabled, with a block
+    // that is neither fixed nor asleep -- what its filter over joint_order finds.
     auto& aj = m.world->awake_joints;
     aj.clear();
     for (const Impl::IntactJoint& ij : m.intact_list()) {
       const BlockSlot& a = m.blocks[ij.a];
       const BlockSlot& b = m.blocks[ij.b];
-      if ((!a.fixed && !a.asleep) || (!b.fixed && !b.asleep)) aj.push_back(m.joints[ij.slot]->constraint.get());
+      btTypedConstraint* c = m.joints[ij.slot]->constraint.get();
+      if (((!a.fixed && !a.asleep) || (!b.fixed && !b.asleep)) && c->isEnabled()) aj.push_back(c);
     }
   }
   // maxSubSteps = 0: exactly one internal step of h; forces are cleared afterwards.
   m.world->stepSimulation(h, 0, h);
+  if (m.world->managed_sleep) {
+    // A sleeping block the solver took (a contact or joint with an awake block) may have been moved
+    // by it (error (4) in docs/rigid.md): its kept centre follows its body. No other sleeping body
+    // is written: integration skips static bodies, the solver writes back only its own bodies.
+    auto follow = [&](const btCollisionObject* o) {
+      if (o->getUserIndex2() == kMeshTag) return;
+      BlockSlot& s = m.blocks[static_cast<std::size_t>(o->getUserIndex())];
+      if (s.asleep) s.centre = from_bt(o->getWorldTransform().getOrigin());
+    };
+    for (const btPersistentManifold* man : m.world->solved_manifolds()) {
+      follow(man->getBody0());
+      follow(man->getBody1());
+    }
+    for (const btTypedConstraint* c : m.world->awake_joints) {
+      follow(&c->getRigidBodyA());
+      follow(&c->getRigidBodyB());
+    }
+  }
+  m.world->awake_joints.clear();  // check_joints below may drop some of them
   m.check_joints();
   m.tally_mesh_loads(h);
   m.time += h;
@@ -705,7 +727,7 @@ void RigidWorld::set_velocity(BlockId id, const Vec3& v, const Vec3& w) {
 void RigidWorld::set_pose(BlockId id, const Vec3& x, const Quat& q) {
   BlockSlot& s = impl_->block(id);
   s.body->setWorldTransform(btTransform(to_bt(q.normalized()), to_bt(x)));
-  s.centre = x;  // read by far sleep while the block sleeps
+  s.centre = from_bt(s.body->getWorldTransform().getOrigin());  // far sleep's copy (BlockSlot)
   // Keep the broadphase in step for static blocks moved by the caller.
   impl_->world->updateSingleAabb(s.body.get());
 }

@@ -230,7 +230,7 @@ TEST(FarSleep, AwakeBlockIsStoppedBySleepingBlock) {
   s.w.step(3.0);
   EXPECT_FALSE(s.w.asleep(s.awake));
   EXPECT_TRUE(s.w.asleep(s.asleep));
-  EXPECT_GT(s.w.position(s.awake).x(), 0.9);  // m; measured 0.962 (crept 3.8 cm in: the defect above)
+  EXPECT_GT(s.w.position(s.awake).x(), 0.9);  // m; measured 0.948 (crept 5.2 cm in: the defect above)
   EXPECT_LT((s.w.position(s.asleep) - s.x0).norm(), 0.1);  // m; measured 1.9e-2 (the defect: split-impulse writeback)
   std::printf("[ far sleep ] awake floe against a sleeping one: stopped at x = %.4f m (face at 1.0); the sleeping "
               "one moved %.2e m\n",
