@@ -37,9 +37,10 @@ struct BlockSlot {
   // Far sleep (RigidWorldDef::far_sleep).
   bool asleep = false;
   double still = 0.0;  // s the block and its neighbours have been still
-  // While asleep: its body's origin, kept equal to it (put_to_sleep, set_pose, and after every
-  // solve for the sleeping blocks the solver touched: error (4) in docs/rigid.md), so that
-  // update_sleep need not read every sleeping body.
+  // While asleep: its body's pose, kept equal to it (put_to_sleep, set_pose; after a solve that
+  // took it, the pose is put back or the block wakes: settle_sleepers), so that update_sleep need
+  // not read every sleeping body.
+  btTransform sleep_pose = btTransform::getIdentity();
   Vec3 centre = Vec3::Zero();
 };
 
@@ -288,7 +289,8 @@ struct RigidWorld::Impl {
     b.forceActivationState(ISLAND_SLEEPING);
     world->updateSingleAabb(&b);  // a static box at its pose (a restored world computes the same)
     b.getBroadphaseHandle()->m_collisionFilterGroup |= kSleepingProxyBit;
-    s.centre = from_bt(b.getWorldTransform().getOrigin());
+    s.sleep_pose = b.getWorldTransform();
+    s.centre = from_bt(s.sleep_pose.getOrigin());
     s.asleep = true;
     ++asleep_count;
   }
@@ -301,6 +303,37 @@ struct RigidWorld::Impl {
     b.getBroadphaseHandle()->m_collisionFilterGroup &= ~kSleepingProxyBit;
     s.asleep = false;
     --asleep_count;
+  }
+  // After a solve: the sleeping blocks it took (a contact or joint with an awake block). Bullet's
+  // solver treats them as bodies of finite mass (the static flag does not make a fixed solver body
+  // of a body with an inverse mass) and writes a velocity back, and with split impulse a pose. A
+  // block the solve set moving (faster than `speed`, or its rim) wakes with that velocity: an
+  // impact passes its momentum on, as if the block had been awake. Any other gets its sleeping pose
+  // back and zero velocity: it stays where it slept, so an awake block pressing on it steadily is
+  // held (to within one sub-step's give, F h / m). No other sleeping body is written: integration
+  // skips static bodies, and the solver writes back only its own.
+  void settle_sleepers() {
+    auto settle = [&](const btCollisionObject* o) {
+      if (o->getUserIndex2() == kMeshTag) return;
+      BlockSlot& s = blocks[static_cast<std::size_t>(o->getUserIndex())];
+      if (!s.asleep) return;
+      if (block_moving(s)) {
+        wake(s);
+        return;
+      }
+      btRigidBody& b = *s.body;
+      b.setLinearVelocity(btVector3(0, 0, 0));
+      b.setAngularVelocity(btVector3(0, 0, 0));
+      b.setWorldTransform(s.sleep_pose);
+    };
+    for (const btPersistentManifold* man : world->solved_manifolds()) {
+      settle(man->getBody0());
+      settle(man->getBody1());
+    }
+    for (const btTypedConstraint* c : world->awake_joints) {
+      settle(&c->getRigidBodyA());
+      settle(&c->getRigidBodyB());
+    }
   }
   bool block_moving(const BlockSlot& s) const {
     const double v = def.far_sleep.speed;
@@ -668,24 +701,7 @@ void RigidWorld::substep() {
   }
   // maxSubSteps = 0: exactly one internal step of h; forces are cleared afterwards.
   m.world->stepSimulation(h, 0, h);
-  if (m.world->managed_sleep) {
-    // A sleeping block the solver took (a contact or joint with an awake block) may have been moved
-    // by it (error (4) in docs/rigid.md): its kept centre follows its body. No other sleeping body
-    // is written: integration skips static bodies, the solver writes back only its own bodies.
-    auto follow = [&](const btCollisionObject* o) {
-      if (o->getUserIndex2() == kMeshTag) return;
-      BlockSlot& s = m.blocks[static_cast<std::size_t>(o->getUserIndex())];
-      if (s.asleep) s.centre = from_bt(o->getWorldTransform().getOrigin());
-    };
-    for (const btPersistentManifold* man : m.world->solved_manifolds()) {
-      follow(man->getBody0());
-      follow(man->getBody1());
-    }
-    for (const btTypedConstraint* c : m.world->awake_joints) {
-      follow(&c->getRigidBodyA());
-      follow(&c->getRigidBodyB());
-    }
-  }
+  if (m.world->managed_sleep) m.settle_sleepers();
   m.world->awake_joints.clear();  // check_joints below may drop some of them
   m.check_joints();
   m.tally_mesh_loads(h);
@@ -727,7 +743,8 @@ void RigidWorld::set_velocity(BlockId id, const Vec3& v, const Vec3& w) {
 void RigidWorld::set_pose(BlockId id, const Vec3& x, const Quat& q) {
   BlockSlot& s = impl_->block(id);
   s.body->setWorldTransform(btTransform(to_bt(q.normalized()), to_bt(x)));
-  s.centre = from_bt(s.body->getWorldTransform().getOrigin());  // far sleep's copy (BlockSlot)
+  s.sleep_pose = s.body->getWorldTransform();  // far sleep's copy (BlockSlot)
+  s.centre = from_bt(s.sleep_pose.getOrigin());
   // Keep the broadphase in step for static blocks moved by the caller.
   impl_->world->updateSingleAabb(s.body.get());
 }
