@@ -41,7 +41,6 @@ struct BlockSlot {
   // took it, the pose is put back or the block wakes: settle_sleepers), so that update_sleep need
   // not read every sleeping body.
   btTransform sleep_pose = btTransform::getIdentity();
-  Vec3 centre = Vec3::Zero();
 };
 
 struct MeshSlot {
@@ -245,14 +244,13 @@ struct RigidWorld::Impl {
   }
 
   void check_joints() {
-    // Slot order, as over `joints`; a joint broken here leaves the list stale until the loop ends
-    // (drop_constraint bumps joints_version), hence the check of `broken` below.
+    // Slot order, as over `joints`. A joint broken here makes the list stale (drop_constraint bumps
+    // joints_version) but each slot comes once, so the rest of this pass is still right.
     for (const IntactJoint& ij : intact_list()) {
       // Two sleeping blocks: the joint was not solved, its feedback and pose are unchanged since
       // it was last checked (and held).
       if (blocks[ij.a].asleep && blocks[ij.b].asleep) continue;
       JointSlot& j = *joints[ij.slot];
-      if (!j.alive || j.broken || !j.constraint) continue;
       const btRigidBody& ba = *blocks[j.a.index].body;
       const Vec3 n = from_bt(ba.getWorldTransform().getBasis() * to_bt(j.normal_in_a));
       const Vec3 fb = from_bt(j.feedback.m_appliedForceBodyB);
@@ -290,7 +288,6 @@ struct RigidWorld::Impl {
     world->updateSingleAabb(&b);  // a static box at its pose (a restored world computes the same)
     b.getBroadphaseHandle()->m_collisionFilterGroup |= kSleepingProxyBit;
     s.sleep_pose = b.getWorldTransform();
-    s.centre = from_bt(s.sleep_pose.getOrigin());
     s.asleep = true;
     ++asleep_count;
   }
@@ -303,6 +300,18 @@ struct RigidWorld::Impl {
     b.getBroadphaseHandle()->m_collisionFilterGroup &= ~kSleepingProxyBit;
     s.asleep = false;
     --asleep_count;
+  }
+  // Before a solve: the joints it takes (CanonicalWorld::awake_joints), intact, enabled, with a
+  // block that is neither fixed nor asleep -- what the world's own filter over joint_order finds.
+  void collect_awake_joints() {
+    auto& aj = world->awake_joints;
+    aj.clear();
+    for (const IntactJoint& ij : intact_list()) {
+      const BlockSlot& a = blocks[ij.a];
+      const BlockSlot& b = blocks[ij.b];
+      btTypedConstraint* c = joints[ij.slot]->constraint.get();
+      if (((!a.fixed && !a.asleep) || (!b.fixed && !b.asleep)) && c->isEnabled()) aj.push_back(c);
+    }
   }
   // After a solve: the sleeping blocks it took (a contact or joint with an awake block). Bullet's
   // solver treats them as bodies of finite mass (the static flag does not make a fixed solver body
@@ -366,8 +375,8 @@ struct RigidWorld::Impl {
       if (!s.asleep) moving[k] = block_moving(s);
       const bool loaded = !s.ext_force.isZero(0.0) || !s.ext_torque.isZero(0.0) || !s.imp_linear.isZero(0.0) ||
                           !s.imp_angular.isZero(0.0);
-      const Vec3 c = s.asleep ? s.centre : from_bt(s.body->getWorldTransform().getOrigin());
-      if (loaded || in_wake_zone(c)) woken[k] = 1;
+      const btTransform& pose = s.asleep ? s.sleep_pose : s.body->getWorldTransform();
+      if (loaded || in_wake_zone(from_bt(pose.getOrigin()))) woken[k] = 1;
     }
     // Every block within wake_hops contacts or joints of a moving block (or of one the caller loads
     // now) is woken, or kept from falling asleep: the solver carries an impulse a few blocks per
@@ -687,18 +696,7 @@ void RigidWorld::substep() {
     ms.origin += h * ms.velocity;
     ms.body->setWorldTransform(btTransform(btQuaternion::getIdentity(), to_bt(ms.origin)));
   }
-  if (m.world->managed_sleep) {
-    // The joints the solver takes (CanonicalWorld::awake_joints): intact, enabled, with a block
-    // that is neither fixed nor asleep -- what its filter over joint_order finds.
-    auto& aj = m.world->awake_joints;
-    aj.clear();
-    for (const Impl::IntactJoint& ij : m.intact_list()) {
-      const BlockSlot& a = m.blocks[ij.a];
-      const BlockSlot& b = m.blocks[ij.b];
-      btTypedConstraint* c = m.joints[ij.slot]->constraint.get();
-      if (((!a.fixed && !a.asleep) || (!b.fixed && !b.asleep)) && c->isEnabled()) aj.push_back(c);
-    }
-  }
+  if (m.world->managed_sleep) m.collect_awake_joints();
   // maxSubSteps = 0: exactly one internal step of h; forces are cleared afterwards.
   m.world->stepSimulation(h, 0, h);
   if (m.world->managed_sleep) m.settle_sleepers();
@@ -744,7 +742,6 @@ void RigidWorld::set_pose(BlockId id, const Vec3& x, const Quat& q) {
   BlockSlot& s = impl_->block(id);
   s.body->setWorldTransform(btTransform(to_bt(q.normalized()), to_bt(x)));
   s.sleep_pose = s.body->getWorldTransform();  // far sleep's copy (BlockSlot)
-  s.centre = from_bt(s.sleep_pose.getOrigin());
   // Keep the broadphase in step for static blocks moved by the caller.
   impl_->world->updateSingleAabb(s.body.get());
 }
