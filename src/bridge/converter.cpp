@@ -128,11 +128,52 @@ Lattice block_lattice(const Vec3& he, const bonded::Pose& pose, double D) {
 }
 
 
+/// Step 1 with IceMaterial::world_lattice: the points of one HCP lattice fixed in the world
+/// frame whose centres lie inside the block's box (its faces included). The lattice is hcp_fill_box's
+/// pattern anchored at the origin: layer k at z = c k, row j at y = row j (+ row/3 in odd layers),
+/// x = D i (+ D/2 in odd rows, + D/2 in odd layers), every point computed from its integer
+/// indices alone, so that every block gets the same bits for the same point.
+Lattice world_lattice(const Vec3& he, const bonded::Pose& pose, double D) {
+  const double c = bonded::hcp_layer_spacing(D), row = 0.5 * std::sqrt(3.0) * D;
+  const Mat3 R = pose.orientation.toRotationMatrix();
+  const Vec3 ext = R.cwiseAbs() * he;  // half sizes of the box's world bounding box
+  const Vec3 lo = pose.position - ext, hi = pose.position + ext;
+  const auto first = [](double v, double h) { return static_cast<std::int64_t>(std::floor(v / h)) - 1; };
+  const auto last = [](double v, double h) { return static_cast<std::int64_t>(std::ceil(v / h)) + 1; };
+  const double eps = 1e-9 * D;
+  Lattice lat;
+  for (std::int64_t k = first(lo.z(), c); k <= last(hi.z(), c); ++k) {
+    const bool b_layer = k % 2 != 0;
+    for (std::int64_t j = first(lo.y(), row); j <= last(hi.y(), row); ++j) {
+      const double x0 = (j % 2 != 0 ? 0.5 * D : 0.0) + (b_layer ? 0.5 * D : 0.0);
+      const double y = row * static_cast<double>(j) + (b_layer ? row / 3.0 : 0.0);
+      for (std::int64_t i = first(lo.x(), D); i <= last(hi.x(), D); ++i) {
+        const Vec3 p(D * static_cast<double>(i) + x0, y, c * static_cast<double>(k));
+        const Vec3 l = R.transpose() * (p - pose.position);
+        if ((l.cwiseAbs() - he).maxCoeff() <= eps) lat.sites.push_back(p);
+      }
+    }
+  }
+  return lat;
+}
+
+/// Steps 1-2 as `mat` asks; throws hs::InputError when no site lies in the block.
+Lattice make_lattice(const BlockState& block, const IceMaterial& mat) {
+  const bonded::Pose pose = lattice_pose(block);
+  if (!mat.world_lattice) return block_lattice(block.half_extents, pose, mat.diameter);
+  Lattice lat = world_lattice(block.half_extents, pose, mat.diameter);
+  if (lat.sites.empty())
+    throw InputError("block/half_extents", "no site of the world lattice lies in the block " +
+                                               vec_str(2.0 * block.half_extents) + " m with D = " +
+                                               std::to_string(mat.diameter) + " m");
+  return lat;
+}
+
 /// Step 3: the sites that overlap no existing particle (on any rank), lie clear of the engine's
 /// plane walls and that `blocked` leaves free.
-std::vector<Vec3> free_sites(bonded::Engine& engine, const std::vector<Vec3>& x, double D, const SiteBlocked& blocked,
-                             std::size_t& dropped) {
-  const std::vector<char> drop = engine.overlapping_sites(x, std::vector<double>(x.size(), 0.5 * D));
+std::vector<Vec3> free_sites(bonded::Engine& engine, const std::vector<Vec3>& x, double D, double test_radius,
+                             const SiteBlocked& blocked, std::size_t& dropped) {
+  const std::vector<char> drop = engine.overlapping_sites(x, std::vector<double>(x.size(), test_radius));
   dropped = 0;
   std::vector<Vec3> kept;
   kept.reserve(x.size());
@@ -256,6 +297,15 @@ std::vector<Vec3> lattice_sites(const BlockState& block, double D) {
   return block_lattice(block.half_extents, lattice_pose(block), D).sites;
 }
 
+std::vector<Vec3> lattice_sites(const BlockState& block, const IceMaterial& material) {
+  if (material.world_lattice) return world_lattice(block.half_extents, lattice_pose(block), material.diameter).sites;
+  return block_lattice(block.half_extents, lattice_pose(block), material.diameter).sites;
+}
+
+double site_test_radius(const IceMaterial& material) {
+  return material.world_lattice ? 0.5 * material.diameter * (1.0 - 1e-9) : 0.5 * material.diameter;
+}
+
 bool lattice_fits(const Vec3& he, double D) {
   if (!(D > 0.0) || !finite(he) || !(he.minCoeff() > 0.0) || 2.0 * he.minCoeff() < D) return false;
   return !bonded::hcp_fill_box(fill_half_extents(he, D), bonded::Pose{}, D).empty();
@@ -268,13 +318,12 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
   ParticleStore& ps = engine.particles();
   const auto [M, V] = check_block(engine, block, mat);
   const double D = mat.diameter;
-  const Vec3& he = block.half_extents;
 
   // ---- 1, 2: the lattice; 3: the sites left free ----
   const Pose pose = lattice_pose(block);
-  const Lattice lattice = block_lattice(he, pose, D);
+  const Lattice lattice = make_lattice(block, mat);
   std::size_t dropped = 0;
-  std::vector<Vec3> kept = free_sites(engine, lattice.sites, D, blocked, dropped);
+  std::vector<Vec3> kept = free_sites(engine, lattice.sites, D, site_test_radius(mat), blocked, dropped);
 
   // ---- 4. mass and buoyant volume ----
   const double n = static_cast<double>(kept.size());

@@ -59,7 +59,20 @@ struct IceMaterial {
   /// engine has water (Column: the lattice floats like the solid, docs/engine.md).
   bonded::BuoyancyModel buoyancy = bonded::BuoyancyModel::Column;
   bonded::MaterialIndex material = 0;
+  /// How the sites are cut (docs/bridge.md, "One lattice for a keel converted at once"): false
+  /// (default) from the block's own lattice, aligned with its faces (steps 1, 1b, 2 below); true
+  /// from one HCP lattice fixed in the world frame, the same points for every block, keeping the
+  /// sites whose centres lie inside the block (no layer trimming, no centroid shift). Blocks
+  /// converted with it fill their union like one lattice: where two boxes touch, their particles
+  /// meet at lattice spacing, with neither the gap nor the overlap two face-aligned lattices leave
+  /// (all_at_start's reference keel, `blocks.lattice` = "world").
+  bool world_lattice = false;
 };
+
+/// The radius convert_block tests a site's sphere with against existing particles: D/2, or for a
+/// world lattice a hair less (1e-9 relative), so that two sites of that lattice one spacing apart,
+/// whose distance rounds either side of D, count as touching, not overlapping.
+double site_test_radius(const IceMaterial& material);
 
 /// An existing particle to freeze-bond (BondKind::Freeze, stress free) to the new particle
 /// nearest `point`, e.g. a block-particle bond that held the converted block, `point` its block
@@ -114,6 +127,9 @@ bool behind_a_wall(const bonded::Engine& engine, const Vec3& site, double r);
 /// before any site is dropped for an overlap), bit for bit. Throws hs::InputError when
 /// !lattice_fits.
 std::vector<Vec3> lattice_sites(const BlockState& block, double D);
+/// The same for `material` (its diameter, and the world lattice when it asks for one; then empty,
+/// not a throw, when no site of it lies in the block).
+std::vector<Vec3> lattice_sites(const BlockState& block, const IceMaterial& material);
 
 /// Optional extra obstacle test for lattice sites: true drops the site (e.g. it would start inside
 /// another rigid block). Called with the site centre and the particle radius D/2; under MPI it

@@ -307,7 +307,7 @@ void HybridSystem::convert_after_rigid_relaxation(const std::vector<JointInit>& 
 
 std::vector<char> HybridSystem::plan_lattice_batch() const {
   const Impl& m = *impl_;
-  const double D = m.def.ice.diameter, r = 0.5 * D;
+  const double D = m.def.ice.diameter, r = 0.5 * D, rt = site_test_radius(m.def.ice);
   const std::vector<rigid::BlockId> blocks = world_->blocks();
   std::uint32_t slots = 0;
   for (const rigid::BlockId id : blocks) slots = std::max(slots, id.index + 1);
@@ -320,11 +320,15 @@ std::vector<char> HybridSystem::plan_lattice_batch() const {
       rigid[id.index] = 1;
       continue;
     }
-    sites[k] = lattice_sites(block_state(*world_, id), D);
+    sites[k] = lattice_sites(block_state(*world_, id), m.def.ice);
+    if (sites[k].empty()) {  // (a world lattice may miss a thin block)
+      rigid[id.index] = 1;
+      continue;
+    }
     all.insert(all.end(), sites[k].begin(), sites[k].end());
   }
   // The sheet's particles and the walls take the same sites whatever the batch does.
-  const std::vector<char> sheet = engine_.overlapping_sites(all, std::vector<double>(all.size(), r));
+  const std::vector<char> sheet = engine_.overlapping_sites(all, std::vector<double>(all.size(), rt));
   std::vector<std::vector<char>> taken(blocks.size());
   for (std::size_t k = 0, s = 0; k < blocks.size(); ++k) {
     taken[k].assign(sites[k].size(), 0);
@@ -358,7 +362,7 @@ std::vector<char> HybridSystem::plan_lattice_batch() const {
               const auto it = kept.find({c.x() + dx, c.y() + dy, c.z() + dz});
               if (it != kept.end())
                 for (const Vec3& q : it->second)
-                  if ((q - p).norm() < r + r) hit = true;
+                  if ((q - p).norm() < rt + rt) hit = true;
             }
         if (!hit) mine.push_back(p);
       }

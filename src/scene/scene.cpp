@@ -47,7 +47,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/blocks",
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "loose_blocks", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "fixed_friction_directions", "rigid_dt", "conversion", "region",
-        "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep"}},
+        "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep", "lattice"}},
       {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time", "lattice_damping"}},
       {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
@@ -539,6 +539,7 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
   b.rigid_dt = o.number("rigid_dt", b.rigid_dt, Range::non_negative(), "s",
                         "rigid step; 0 = the largest the stability rule allows (docs/bridge.md)");
   b.conversion = o.choice("conversion", b.conversion, {"hybrid", "all_at_start", "never"});
+  b.lattice = o.choice("lattice", b.lattice, {"block", "world"});
   b.safety_factor = o.number("safety_factor", b.safety_factor, Range::positive(), "",
                              "a block converts when its stress utilisation x safety_factor >= 1; > 1 converts earlier");
   b.flexural_strength = o.number("flexural_strength", s.analysis.flexural_strength, Range::positive(), "Pa",

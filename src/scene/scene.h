@@ -194,6 +194,9 @@ struct BlocksDef {
   bool fixed_friction_directions = true;
   double rigid_dt = 0.0;             ///< s; 0 = the largest step the stability rule allows
   std::string conversion = "hybrid"; ///< "hybrid", "all_at_start" or "never"
+  /// Where a converted block's sites come from (bridge::IceMaterial::world_lattice): "block", its
+  /// own face-aligned lattice, or "world", one lattice fixed in the world shared by every block.
+  std::string lattice = "block";
   ConversionRegionDef region;
   double safety_factor = 1.0;        ///< converts when utilisation x safety_factor >= 1
   double flexural_strength = 0.0;    ///< Pa; 0 = analysis.flexural_strength

@@ -22,6 +22,7 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   d.rigid_dt = b.rigid_dt;
   d.ice.diameter = s.material.particle_diameter;
   d.ice.buoyancy = bonded::BuoyancyModel::Column;
+  d.ice.world_lattice = b.lattice == "world";
   d.block_density = b.density > 0.0 ? b.density : s.material.density;
   d.block_friction = b.friction >= 0.0 ? b.friction : s.material.friction;
   rigid::RigidWorldDef& w = d.world;
