@@ -242,7 +242,8 @@ TEST(RidgeRest, AllAtStartOnOneWorldLatticeStaysAtRest) {
   // no joint, freeze bond or lattice bond broken, fastest particle 2.0e-5 m/s (3.5e-4 above),
   // sheet mean dz 1.3e-5 m.
   const std::string extra = " --set blocks.relax.damping=3 --set blocks.relax.jointed_time=1"
-                            " --set blocks.relax.lattice_time=30 --set blocks.lattice=world";
+                            " --set blocks.relax.lattice_time=30 --set blocks.lattice=world"
+                            " --set time.checkpoint_interval=2.5";
   expect_at_rest(run_mode("all_at_start", extra, "rest_world.h5"), "all_at_start, world lattice", true);
   const fs::path a = work_dir() / "rest_world.h5";
   EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "lattice_converged"), 1.0);
@@ -251,6 +252,12 @@ TEST(RidgeRest, AllAtStartOnOneWorldLatticeStaysAtRest) {
   // Every block converts: no block's sites are all taken, since none overlaps another's.
   EXPECT_EQ(read_attribute(a, "/analysis/hybrid", "conversions_refused"), 0.0);
   EXPECT_GT(read_attribute(a, "/analysis/hybrid", "particles_created"), 180.0);  // 131 on own lattices
+  // A restart cuts the same sites from the world lattice and continues bit for bit.
+  const auto b = hybridsim("run rest.json --set blocks.conversion=all_at_start" + extra +
+                           " --restart rest_world.h5 -o rest_world_b.h5");
+  ASSERT_EQ(b.rc, 0) << b.err;
+  EXPECT_NE(b.err.find("restarted from rest_world.ckpt.h5"), std::string::npos) << b.err;
+  expect_same_series(a, work_dir() / "rest_world_b.h5");
 }
 
 TEST(RidgeRest, TheLatticeStageHasItsOwnDamping) {
