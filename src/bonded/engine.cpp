@@ -774,7 +774,12 @@ void Engine::bond_forces() {
   if (bonds_.empty()) return;
   if (!bond_batch_.valid_for(bonds_.size())) bond_batch_.pack(bonds_);
   broken_bonds_.clear();
-  bond_kernel(bond_batch_, def_.bond, 2, {ps_.x.data(), ps_.q.data(), ps_.v.data(), ps_.omega.data(), ps_.f.data(), ps_.torque.data()},
+  ParallelBondParams held[2] = {def_.bond[0], def_.bond[1]};
+  for (int k = 0; k < 2; ++k)
+    if (bonds_unbreakable_[k]) held[k].sigma_c = held[k].tau_c = held[k].sigma_cc = INFINITY;
+  const bool any_held = bonds_unbreakable_[0] || bonds_unbreakable_[1];
+  bond_kernel(bond_batch_, any_held ? held : def_.bond, 2,
+              {ps_.x.data(), ps_.q.data(), ps_.v.data(), ps_.omega.data(), ps_.f.data(), ps_.torque.data()},
               broken_bonds_);
   const std::size_t n_broken = broken_bonds_.size();
   for (const BrokenBond& bb : broken_bonds_) {
@@ -1047,6 +1052,22 @@ void Engine::run(std::uint64_t steps) {
 }
 
 // ---------------------------------------------------------------- diagnostics
+
+std::size_t Engine::bond_count(BondKind kind) const {
+  return static_cast<std::size_t>(std::count_if(bonds_.begin(), bonds_.end(), [&](const Bond& b) { return b.kind == kind; }));
+}
+
+std::size_t Engine::overloaded_bond_count(BondKind kind) const {
+  const ParallelBondParams& p = def_.bond[static_cast<int>(kind)];
+  std::size_t n = 0;
+  for (const auto& b : bonds_) {
+    if (b.kind != kind) continue;
+    const BondKinematics k{ps_.x[b.i], ps_.x[b.j], ps_.q[b.i], ps_.q[b.j], ps_.v[b.i], ps_.v[b.j], ps_.omega[b.i], ps_.omega[b.j]};
+    const BondResult r = parallel_bond(p, b.ref, k);
+    n += bond_failure(p, r.sigma, r.tau, r.crush) != BondFailure::None;
+  }
+  return n;
+}
 
 EnergyReport Engine::energy() const {
   EnergyReport e;

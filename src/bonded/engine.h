@@ -323,6 +323,13 @@ class Engine {
     forces_valid_ = false;
   }
   bool walls_parked() const { return walls_parked_; }
+  /// Set-up stages (all_at_start's lattice stage, docs/bridge.md): bonds of `kind` cannot break
+  /// while set (their strengths are taken as infinite; their forces are as always).
+  void set_bonds_unbreakable(BondKind kind, bool unbreakable) { bonds_unbreakable_[static_cast<int>(kind)] = unbreakable; }
+  bool bonds_unbreakable(BondKind kind) const { return bonds_unbreakable_[static_cast<int>(kind)]; }
+  /// This rank's bonds of `kind`, and those of them whose stresses now exceed their strengths.
+  std::size_t bond_count(BondKind kind) const;
+  std::size_t overloaded_bond_count(BondKind kind) const;
   /// Time and step count back to zero and the bond-break counters cleared: the run's t = 0
   /// after a set-up stage (the state of every particle and bond is kept).
   void reset_clock() {
@@ -595,6 +602,7 @@ class Engine {
   std::uint64_t step_ = 0;
   StepStats stats_;
   bool walls_parked_ = false;      ///< set_walls_parked
+  bool bonds_unbreakable_[2] = {false, false};  ///< set_bonds_unbreakable, by BondKind
   // overlap check of the last force pass
   double worst_overlap_ratio_ = 0.0;
   std::uint32_t worst_overlap_i_ = 0, worst_overlap_j_ = 0;

@@ -122,6 +122,12 @@ struct RelaxDef {
   double lattice_time = 0.0;
   /// 1/s: the lattice stage's damping (as `damping` above); < 0 (default): `damping`.
   double lattice_damping = -1.0;
+  /// all_at_start's lattice stage: true keeps the freeze bonds the conversion made between
+  /// particles (the ridge's joints, handed over) in place through the stage, unbreakable, as the
+  /// jointed stage holds the joints, and leaves them at the freeze as they are, breakable, with the
+  /// load they carry; false (default) holds them back until the freeze and makes them there,
+  /// stress free (docs/bridge.md, "Relaxation").
+  bool hold_freeze_bonds = false;
   /// The damping the lattice stage uses (lattice_damping, or damping when that is < 0).
   double lattice_stage_damping() const { return lattice_damping >= 0.0 ? lattice_damping : damping; }
 };
@@ -162,6 +168,9 @@ struct RelaxReport {
   std::uint64_t jointed_converged = 0;  ///< 1: at rest before jointed_time
   std::uint64_t jointed_joints = 0;     ///< joints between blocks it held
   std::uint64_t joints_overloaded = 0;  ///< of those, loaded beyond their strength at its end
+  /// The lattice stage with RelaxDef::hold_freeze_bonds: the particle freeze bonds it held, and
+  /// those loaded beyond their strength at its end (they break in the run's first step).
+  std::uint64_t freeze_bonds_held = 0, freeze_bonds_overloaded = 0;
   double unjointed_max_block_speed = 0.0;  ///< m/s: fastest block when it began
   // The lattice stage (RelaxDef::lattice_time, all_at_start); time above includes it.
   double lattice_time = 0.0;            ///< s of it run (0: none)

@@ -158,6 +158,10 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     set_damping(def.lattice_stage_damping());
     R.lattice_converged = run_stage(def.lattice_time) ? 1 : 0;
     R.lattice_time = P.time - t2;
+    if (engine_.bonds_unbreakable(bonded::BondKind::Freeze)) {
+      R.freeze_bonds_held = engine_.bond_count(bonded::BondKind::Freeze);
+      R.freeze_bonds_overloaded = engine_.overloaded_bond_count(bonded::BondKind::Freeze);
+    }
   }
   R.time = P.time;
   R.max_block_speed = P.max_block_speed;
@@ -235,6 +239,7 @@ void HybridSystem::freeze() {
   Impl& m = *impl_;
   m.freeze_pending = false;
   engine_.set_walls_parked(false);
+  engine_.set_bonds_unbreakable(bonded::BondKind::Freeze, false);
   engine_.reset_clock();
   world_->reset_clock();
   if (m.def.has_structure) m.mesh = world_->add_kinematic_mesh(m.def.structure);
@@ -398,9 +403,12 @@ void HybridSystem::convert_before_relaxation() {
   for (const JointInit& j : joints)
     if (world_->alive(m.pending_ids.at(j.a)) && world_->alive(m.pending_ids.at(j.b))) m.pending_joints.push_back(j);
   m.held_block_bonds = m.bonds.take_all();
-  m.held_bonds = engine_.remove_bonds([&](const bonded::Bond& b) {
-    return b.kind == bonded::BondKind::Freeze && std::max(b.gi, b.gj) >= first_new;
-  });
+  if (m.relax.def.lattice_time > 0.0 && m.relax.def.hold_freeze_bonds)
+    engine_.set_bonds_unbreakable(bonded::BondKind::Freeze, true);  // in place, unbreakable until the freeze
+  else
+    m.held_bonds = engine_.remove_bonds([&](const bonded::Bond& b) {
+      return b.kind == bonded::BondKind::Freeze && std::max(b.gi, b.gj) >= first_new;
+    });
   m.converted_before_relax = true;
 }
 

@@ -48,7 +48,8 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "loose_blocks", "list", "density", "friction", "linear_drag",
         "drag_coefficient", "solver_iterations", "fixed_friction_directions", "rigid_dt", "conversion", "region",
         "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep", "lattice"}},
-      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time", "lattice_damping"}},
+      {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time", "lattice_damping",
+                         "hold_freeze_bonds"}},
       {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
@@ -517,6 +518,7 @@ void read_relax(const JsonObject& o, BlocksDef::Relax& r) {
   if (x.has("lattice_damping"))
     r.lattice_damping = x.number("lattice_damping", r.damping, Range::non_negative(), "1/s",
                                  "the lattice stage's damping (all_at_start), e.g. 0.5; default: damping");
+  r.hold_freeze_bonds = x.boolean("hold_freeze_bonds", r.hold_freeze_bonds);
 }
 
 /// Rigid ice blocks and their conversion.

@@ -213,6 +213,7 @@ struct BlocksDef {
     double jointed_time = 0.0;  ///< s of the jointed stage after it (bridge::RelaxDef); 0 = none
     double lattice_time = 0.0;  ///< s, all_at_start: lattices relax after the rigid blocks (bridge::RelaxDef)
     double lattice_damping = -1.0;  ///< 1/s, the lattice stage's damping; < 0: damping (bridge::RelaxDef)
+    bool hold_freeze_bonds = false;  ///< the lattice stage keeps its freeze bonds, unbreakable (bridge::RelaxDef)
   } relax;
   /// Not a scene key: false lets the run take a ridge file made with other ice or under fixed
   /// boxes (sim::check_ridge_generation passes). Set by `hybridsim bench hybrid` only, which times

@@ -75,7 +75,7 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
     } else {
       const auto& r = s.blocks.relax;
       const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping, r.jointed_time, r.lattice_time,
-                                                               r.lattice_damping},
+                                                               r.lattice_damping, r.hold_freeze_bonds},
                                                               opt.relax_progress);
       if (rep.stopped) throw RelaxationStopped(rep.time);
       // Not at rest at the freeze: the last stage did not end at rest (a first stage that ends

@@ -749,3 +749,41 @@ TEST(Engine, ABondPastItsCompressiveStrengthBreaksInCompression) {
     }
   }
 }
+
+TEST(Engine, UnbreakableBondsOfAKindHoldUntilReleased) {
+  // Engine::set_bonds_unbreakable (all_at_start's lattice stage holds its freeze bonds so,
+  // docs/bridge.md): two bonded pairs flying apart at 0.5 m/s, undamped, the tensile strength at
+  // half the peak stress a free stretch reaches, one pair lattice-bonded and one freeze-bonded.
+  // With freeze bonds held only the lattice bond breaks; at the largest stretch the freeze bond
+  // counts as overloaded, and released it breaks at the next step.
+  test::Ice ice;
+  EngineDef d = test::no_field_def(ice);
+  const double r = 0.5 * ice.D, m = ice.sphere_mass(), v = 0.5;
+  const ParallelBondParams base =
+      ParallelBondParams::from_stiffness(ice.kn(), ice.kn(), r, INFINITY, INFINITY, 0.0, 0.5 * m, 0.2 * m * r * r);
+  const double peak = ice.kn() * v * std::sqrt(0.5 * m / ice.kn()) / base.area();
+  d.bond[0] = d.bond[1] = base;
+  d.bond[0].sigma_c = d.bond[1].sigma_c = 0.5 * peak;
+  Engine e(d);
+  for (const double y : {0.0, 5.0}) {
+    auto a = test::sphere_at(ice, Vec3(0, y, 0));
+    auto b = test::sphere_at(ice, Vec3(ice.D, y, 0));
+    a.v = Vec3(-0.5 * v, 0, 0);
+    b.v = Vec3(0.5 * v, 0, 0);
+    e.add_particle(a);
+    e.add_particle(b);
+  }
+  e.add_bond(0, 1, BondKind::Lattice);
+  e.add_bond(2, 3, BondKind::Freeze);
+  e.set_bonds_unbreakable(BondKind::Freeze, true);
+  const double period = 2.0 * kPi * std::sqrt(0.5 * m / ice.kn());
+  e.run(static_cast<std::uint64_t>(0.25 * period / e.dt()));  // to the largest stretch
+  EXPECT_EQ(e.stats().bonds_broken, 1u) << "the lattice bond breaks";
+  EXPECT_EQ(e.bond_count(BondKind::Freeze), 1u);
+  EXPECT_EQ(e.bond_count(BondKind::Lattice), 0u);
+  EXPECT_EQ(e.overloaded_bond_count(BondKind::Freeze), 1u) << "held past its strength";
+  e.set_bonds_unbreakable(BondKind::Freeze, false);
+  e.run(1);
+  EXPECT_EQ(e.stats().bonds_broken, 2u) << "released, it breaks at once";
+  EXPECT_EQ(e.bond_count(BondKind::Freeze), 0u);
+}
