@@ -312,6 +312,10 @@ TEST(SceneSchema, DocsSchemaListsTheSameKeys) {
       for (const auto& [k, v] : node["properties"].items()) walk(v, ptr + "/" + k);
     }
     if (node.contains("items") && node["items"].is_object()) walk(node["items"], ptr + "/0");
+    // A key that takes several forms (e.g. blocks.relax: true/false or an object): each form.
+    for (const char* alt : {"oneOf", "anyOf"})
+      if (node.contains(alt))
+        for (const auto& form : node[alt]) walk(form, ptr);
   };
   walk(schema, "");
 }
