@@ -55,6 +55,12 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
                    x.lattice_time, x.rigid_max_block_speed, x.lattice_converged ? "at rest" : "NOT at rest",
                    static_cast<unsigned long long>(r.conversions), static_cast<unsigned long long>(r.particles_created),
                    static_cast<unsigned long long>(r.sites_dropped));
+    if (x.ran && x.lattice_time > 0.0 && x.def.hold_freeze_bonds)
+      std::fprintf(progress,
+                   "hybridsim: the lattice stage held %llu freeze bonds unbreakable; %llu loaded beyond their "
+                   "strength at its end\n",
+                   static_cast<unsigned long long>(x.freeze_bonds_held),
+                   static_cast<unsigned long long>(x.freeze_bonds_overloaded));
   }
   if (comm.parallel()) {
     const auto& g = e.decomposition().dims();

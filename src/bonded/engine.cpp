@@ -774,13 +774,15 @@ void Engine::bond_forces() {
   if (bonds_.empty()) return;
   if (!bond_batch_.valid_for(bonds_.size())) bond_batch_.pack(bonds_);
   broken_bonds_.clear();
-  ParallelBondParams held[2] = {def_.bond[0], def_.bond[1]};
-  for (int k = 0; k < 2; ++k)
-    if (bonds_unbreakable_[k]) held[k].sigma_c = held[k].tau_c = held[k].sigma_cc = INFINITY;
-  const bool any_held = bonds_unbreakable_[0] || bonds_unbreakable_[1];
-  bond_kernel(bond_batch_, any_held ? held : def_.bond, 2,
-              {ps_.x.data(), ps_.q.data(), ps_.v.data(), ps_.omega.data(), ps_.f.data(), ps_.torque.data()},
-              broken_bonds_);
+  const BondKernelIo io{ps_.x.data(), ps_.q.data(), ps_.v.data(), ps_.omega.data(), ps_.f.data(), ps_.torque.data()};
+  if (bonds_unbreakable_[0] || bonds_unbreakable_[1]) {  // a set-up stage: strengths taken as infinite
+    ParallelBondParams held[2] = {def_.bond[0], def_.bond[1]};
+    for (int k = 0; k < 2; ++k)
+      if (bonds_unbreakable_[k]) held[k].sigma_c = held[k].tau_c = held[k].sigma_cc = INFINITY;
+    bond_kernel(bond_batch_, held, 2, io, broken_bonds_);
+  } else {
+    bond_kernel(bond_batch_, def_.bond, 2, io, broken_bonds_);
+  }
   const std::size_t n_broken = broken_bonds_.size();
   for (const BrokenBond& bb : broken_bonds_) {
     // Broken: its force is removed from this step on. Mark via an impossible kind.

@@ -327,7 +327,9 @@ class Engine {
   /// while set (their strengths are taken as infinite; their forces are as always).
   void set_bonds_unbreakable(BondKind kind, bool unbreakable) { bonds_unbreakable_[static_cast<int>(kind)] = unbreakable; }
   bool bonds_unbreakable(BondKind kind) const { return bonds_unbreakable_[static_cast<int>(kind)]; }
-  /// This rank's bonds of `kind`, and those of them whose stresses now exceed their strengths.
+  /// This rank's bonds of `kind`, and those of them whose stresses now exceed their strengths
+  /// (meant for a serial engine, e.g. the relaxation before distribute(): under MPI a bond whose
+  /// ends lie on two ranks may be counted on both).
   std::size_t bond_count(BondKind kind) const;
   std::size_t overloaded_bond_count(BondKind kind) const;
   /// Time and step count back to zero and the bond-break counters cleared: the run's t = 0

@@ -161,7 +161,7 @@ Lattice world_lattice(const Vec3& he, const bonded::Pose& pose, double D) {
 Lattice make_lattice(const BlockState& block, const IceMaterial& mat) {
   const bonded::Pose pose = lattice_pose(block);
   if (!mat.world_lattice) return block_lattice(block.half_extents, pose, mat.diameter);
-  Lattice lat = world_lattice(block.half_extents, pose, mat.diameter);
+  Lattice lat = world_lattice(block.half_extents, pose, mat.diameter);  // (also lattice_sites')
   if (lat.sites.empty())
     throw InputError("block/half_extents", "no site of the world lattice lies in the block " +
                                                vec_str(2.0 * block.half_extents) + " m with D = " +

@@ -117,17 +117,18 @@ struct RelaxDef {
   /// s, all_at_start only: > 0 relaxes the rigid blocks first, as in hybrid mode (both stages
   /// above), then converts every block at its relaxed pose against the relaxed sheet and lets
   /// the lattices relax for at most this long (a third stage, the freeze bonds the conversion
-  /// made held back until the freeze); 0 converts before the relaxation (docs/bridge.md,
+  /// made held back until the freeze, or held in place: hold_freeze_bonds); 0 converts before the relaxation (docs/bridge.md,
   /// "Relaxation", "Converting after a rigid relaxation").
   double lattice_time = 0.0;
   /// 1/s: the lattice stage's damping (as `damping` above); < 0 (default): `damping`.
   double lattice_damping = -1.0;
-  /// all_at_start's lattice stage: true keeps the freeze bonds the conversion made between
-  /// particles (the ridge's joints, handed over) in place through the stage, unbreakable, as the
-  /// jointed stage holds the joints, and leaves them at the freeze as they are, breakable, with the
-  /// load they carry; false (default) holds them back until the freeze and makes them there,
-  /// stress free (docs/bridge.md, "Relaxation").
-  bool hold_freeze_bonds = false;
+  /// all_at_start's lattice stage: 1 keeps the particle freeze bonds the conversion made (the
+  /// ridge's joints and its bonds to the sheet, handed over) in place through the stage,
+  /// unbreakable, as the jointed stage holds the joints, and leaves them at the freeze as they
+  /// are, breakable, with the load they carry; 0 (default) holds them back until the freeze and
+  /// makes them there, stress free (docs/bridge.md, "Relaxation"). (An integer: RelaxReport, which
+  /// holds this definition, goes into checkpoints as bytes, and a bool would add padding.)
+  std::uint64_t hold_freeze_bonds = 0;
   /// The damping the lattice stage uses (lattice_damping, or damping when that is < 0).
   double lattice_stage_damping() const { return lattice_damping >= 0.0 ? lattice_damping : damping; }
 };

@@ -82,7 +82,7 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     mean = n ? sum / static_cast<double>(n) : 0.0;
   };
   // all_at_start: the lattices relax with the sheet (their freeze bonds held back until the
-  // freeze), not the rigid blocks they came from: converted now, or (lattice_time > 0) after the
+  // freeze, or held in place: hold_freeze_bonds), not the rigid blocks they came from: converted now, or (lattice_time > 0) after the
   // rigid blocks have relaxed as in hybrid mode. After z0: the sheet's figures stay the sheet's.
   const bool lattice_stage = m.def.mode == ConversionMode::AllAtStart && def.lattice_time > 0.0;
   if (m.def.mode == ConversionMode::AllAtStart && !lattice_stage) convert_before_relaxation();
@@ -367,7 +367,7 @@ std::vector<char> HybridSystem::plan_lattice_batch() const {
               const auto it = kept.find({c.x() + dx, c.y() + dy, c.z() + dz});
               if (it != kept.end())
                 for (const Vec3& q : it->second)
-                  if ((q - p).norm() < rt + rt) hit = true;
+                  if ((q - p).norm() < r + rt) hit = true;  // as overlapping_sites: particle r + site rt
             }
         if (!hit) mine.push_back(p);
       }
@@ -397,7 +397,8 @@ void HybridSystem::convert_before_relaxation() {
   m.batch_rigid.clear();
   // Held back until the freeze: the joints between blocks left rigid (refused by the converter;
   // made again from the ridge file's joints at the relaxed poses), the block-particle bonds, and
-  // the particle-particle freeze bonds to the new particles (both ends' ids kept).
+  // the particle-particle freeze bonds to the new particles (both ends' ids kept), unless the
+  // lattice stage holds those in place, unbreakable (hold_freeze_bonds).
   for (const rigid::BlockId id : world_->blocks())
     for (const rigid::JointId j : world_->joints_of(id)) world_->remove_joint(j);
   for (const JointInit& j : joints)

@@ -224,6 +224,10 @@ BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, do
   BlockSetup out;
   out.def = hybrid_def(s);
   if (!s.has_blocks) return out;
+  if (out.def.ice.world_lattice && out.def.mode == bridge::ConversionMode::Hybrid)
+    out.warnings.push_back("/blocks/lattice: \"world\" cuts a block converting during the run from a lattice fixed in "
+                           "the world, not aligned with its faces nor with its converted neighbours' moved particles; it "
+                           "is meant for all_at_start, where every block converts at once (docs/bridge.md)");
   out.def.region = conversion_region(s.blocks.region, s.has_structure ? structure_radius : 0.0);
   if (s.has_structure && structure) {
     out.def.has_structure = true;

@@ -179,7 +179,7 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
       {"hold", r.def.hold},
       {"damping", r.def.damping},
       {"lattice_damping", r.def.lattice_stage_damping()},
-      {"hold_freeze_bonds", r.def.hold_freeze_bonds ? 1.0 : 0.0},
+      {"hold_freeze_bonds", static_cast<double>(r.def.hold_freeze_bonds)},
       {"jointed_time", r.jointed_time},
       {"jointed_converged", static_cast<double>(r.jointed_converged)},
       {"jointed_joints", static_cast<double>(r.jointed_joints)},
@@ -202,7 +202,9 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
                               "in time), converged (1: at rest), the joints it held unbreakable and those loaded "
                               "beyond their strength at its end, the fastest block when it began (m/s); the lattice stage "
                               "(blocks.relax.lattice_time, all_at_start after rigid stages): its time (s, in time), "
-                              "converged (1: at rest), the fastest block when the rigid stages ended (m/s); the run's "
+                              "converged (1: at rest), the fastest block when the rigid stages ended (m/s), its damping (1/s), "
+                              "hold_freeze_bonds (1: the particle freeze bonds held in place, unbreakable, through it), "
+                              "freeze_bonds_held and freeze_bonds_overloaded (those beyond their strength at its end); the run's "
                               "t = 0 is its end"));
 }
 

@@ -75,7 +75,7 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
     } else {
       const auto& r = s.blocks.relax;
       const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping, r.jointed_time, r.lattice_time,
-                                                               r.lattice_damping, r.hold_freeze_bonds},
+                                                               r.lattice_damping, r.hold_freeze_bonds ? 1u : 0u},
                                                               opt.relax_progress);
       if (rep.stopped) throw RelaxationStopped(rep.time);
       // Not at rest at the freeze: the last stage did not end at rest (a first stage that ends
@@ -100,6 +100,17 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
       if (r.lattice_time > 0.0 && def.mode != bridge::ConversionMode::AllAtStart)
         sim.blocks_.warnings.push_back("/blocks/relax/lattice_time: set, but only all_at_start converts before the "
                                        "run; ignored in this conversion mode");
+      if (r.hold_freeze_bonds && !(r.lattice_time > 0.0 && def.mode == bridge::ConversionMode::AllAtStart))
+        sim.blocks_.warnings.push_back("/blocks/relax/hold_freeze_bonds: set, but it acts only in all_at_start's "
+                                       "lattice stage (blocks.conversion = all_at_start and blocks.relax.lattice_time "
+                                       "> 0); ignored here");
+      if (lattice && rep.freeze_bonds_overloaded) {
+        std::ostringstream w;
+        w << "/blocks/relax: " << rep.freeze_bonds_overloaded << " of the " << rep.freeze_bonds_held
+          << " freeze bonds held in the lattice stage carry more than their strength at its end and will break at "
+             "the run's first step";
+        sim.blocks_.warnings.push_back(w.str());
+      }
       if (jointed && !lattice && rep.joints_overloaded) {  // (a lattice stage removed those joints)
         std::ostringstream w;
         w << "/blocks/relax: " << rep.joints_overloaded << " of the " << rep.jointed_joints

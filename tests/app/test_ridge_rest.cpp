@@ -270,7 +270,7 @@ TEST(RidgeRest, AllAtStartWithItsFreezeBondsHeldThroughTheLatticeStageStaysAtRes
   // (2.0e-5 m/s held back), sheet mean dz 6.6e-7 m.
   const std::string extra = " --set blocks.relax.damping=3 --set blocks.relax.jointed_time=1"
                             " --set blocks.relax.lattice_time=30 --set blocks.lattice=world"
-                            " --set blocks.relax.hold_freeze_bonds=true";
+                            " --set blocks.relax.hold_freeze_bonds=true --set time.checkpoint_interval=2.5";
   expect_at_rest(run_mode("all_at_start", extra, "rest_held.h5"), "all_at_start, freeze bonds held", true);
   const fs::path a = work_dir() / "rest_held.h5";
   EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "lattice_converged"), 1.0);
@@ -278,6 +278,12 @@ TEST(RidgeRest, AllAtStartWithItsFreezeBondsHeldThroughTheLatticeStageStaysAtRes
   EXPECT_GT(read_attribute(a, "/analysis/relaxation", "freeze_bonds_held"), 100.0);
   EXPECT_EQ(read_attribute(a, "/analysis/relaxation", "freeze_bonds_overloaded"), 0.0);
   expect_converted_before_t0(a);
+  // The restart converts again with the bonds held back or not as the checkpoint's relaxation
+  // says, then loads the particles and bonds: bit for bit.
+  const auto b = hybridsim("run rest.json --set blocks.conversion=all_at_start" + extra +
+                           " --restart rest_held.h5 -o rest_held_b.h5");
+  ASSERT_EQ(b.rc, 0) << b.err;
+  expect_same_series(a, work_dir() / "rest_held_b.h5");
 }
 
 TEST(RidgeRest, TheLatticeStageHasItsOwnDamping) {

@@ -221,7 +221,8 @@ TEST(Converter, WorldLatticeBlocksFillTheirUnionLikeOneLattice) {
   a.density = b.density = kRhoI;
   struct Result {
     std::size_t particles = 0, dropped_b = 0, union_points = 0, missing = 0, across_touching = 0;
-    double min_across = 1e30, mass = 0.0;
+    std::size_t most_neighbours = 0, with_12 = 0;  // neighbours at one spacing, over all particles
+    double min_across = 1e30, min_all = 1e30, mass = 0.0;
   };
   auto convert_pair = [&](bool world) {
     IceMaterial im = ice_material(mat);
@@ -232,7 +233,19 @@ TEST(Converter, WorldLatticeBlocksFillTheirUnionLikeOneLattice) {
     Result out;
     out.particles = e.particles().size();
     out.dropped_b = rb.particles_dropped;
-    for (std::size_t i = 0; i < e.particles().size(); ++i) out.mass += e.particles().mass[i];
+    const auto& x = e.particles().x;
+    for (std::size_t i = 0; i < x.size(); ++i) {
+      out.mass += e.particles().mass[i];
+      std::size_t nb = 0;
+      for (std::size_t j = 0; j < x.size(); ++j)
+        if (j != i) {
+          const double d = (x[i] - x[j]).norm();
+          out.min_all = std::min(out.min_all, d);
+          nb += std::abs(d - mat.D) < 1e-9 * mat.D;
+        }
+      out.most_neighbours = std::max(out.most_neighbours, nb);
+      out.with_12 += nb == 12;
+    }
     for (const Vec3& p : ra.sites)
       for (const Vec3& q : rb.sites) {
         const double d = (p - q).norm();
@@ -261,11 +274,18 @@ TEST(Converter, WorldLatticeBlocksFillTheirUnionLikeOneLattice) {
   const double M = kRhoI * 8.0 * (a.half_extents.prod() + b.half_extents.prod());
   std::printf("[world lattice] world: %zu particles on the %zu lattice points of the union (%zu missing), %zu of the "
               "second block's sites dropped, closest pair across the face %.6f D, %zu pairs at one spacing; own "
-              "lattices: %zu particles, %zu missing, %zu dropped, closest pair %.4f D, %zu pairs at one spacing\n",
+              "lattices: %zu particles, %zu missing, %zu dropped, closest pair %.4f D, %zu pairs at one spacing; "
+              "world lattice: closest pair overall %.6f D, at most %zu neighbours, %zu particles with 12\n",
               w.particles, w.union_points, w.missing, w.dropped_b, w.min_across / mat.D, w.across_touching, f.particles,
-              f.missing, f.dropped_b, f.min_across / mat.D, f.across_touching);
+              f.missing, f.dropped_b, f.min_across / mat.D, f.across_touching, w.min_all / mat.D, w.most_neighbours,
+              w.with_12);
   EXPECT_EQ(w.missing, 0u);
   EXPECT_EQ(w.particles, w.union_points);
+  // And that lattice is close packed: no two particles closer than one spacing anywhere, at most
+  // 12 neighbours at one spacing, 12 inside (measured: 1.000000 D, 12, 83 particles with 12).
+  EXPECT_GT(w.min_all, mat.D * (1.0 - 1e-9));
+  EXPECT_EQ(w.most_neighbours, 12u);
+  EXPECT_GT(w.with_12, 20u);
   EXPECT_GT(w.min_across, mat.D * (1.0 - 1e-9));  // none overlaps
   EXPECT_GT(w.across_touching, 20u);              // the two meet over the face
   EXPECT_NEAR(w.mass, M, 1e-12 * M);              // M/n per block, as with its own lattice
