@@ -194,8 +194,9 @@ struct BlocksDef {
   bool fixed_friction_directions = true;
   double rigid_dt = 0.0;             ///< s; 0 = the largest step the stability rule allows
   std::string conversion = "hybrid"; ///< "hybrid", "all_at_start" or "never"
-  /// Where a converted block's sites come from (bridge::IceMaterial::world_lattice): "block", its
-  /// own face-aligned lattice, or "world", one lattice fixed in the world shared by every block.
+  /// Where all_at_start's blocks' sites come from (bridge::IceMaterial::world_lattice): "block",
+  /// each its own face-aligned lattice, or "world", one lattice fixed in the world shared by every
+  /// block. Hybrid-mode conversions always use the block's own lattice.
   std::string lattice = "block";
   ConversionRegionDef region;
   double safety_factor = 1.0;        ///< converts when utilisation x safety_factor >= 1

@@ -22,7 +22,9 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   d.rigid_dt = b.rigid_dt;
   d.ice.diameter = s.material.particle_diameter;
   d.ice.buoyancy = bonded::BuoyancyModel::Column;
-  d.ice.world_lattice = b.lattice == "world";
+  // The world lattice is all_at_start's: a block converting during a hybrid run is cut from its
+  // own lattice whatever blocks.lattice says (docs/bridge.md, "One lattice for a keel ...").
+  d.ice.world_lattice = b.lattice == "world" && d.mode == bridge::ConversionMode::AllAtStart;
   d.block_density = b.density > 0.0 ? b.density : s.material.density;
   d.block_friction = b.friction >= 0.0 ? b.friction : s.material.friction;
   rigid::RigidWorldDef& w = d.world;
@@ -224,10 +226,6 @@ BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, do
   BlockSetup out;
   out.def = hybrid_def(s);
   if (!s.has_blocks) return out;
-  if (out.def.ice.world_lattice && out.def.mode == bridge::ConversionMode::Hybrid)
-    out.warnings.push_back("/blocks/lattice: \"world\" cuts a block converting during the run from a lattice fixed in "
-                           "the world, not aligned with its faces nor with its converted neighbours' moved particles; it "
-                           "is meant for all_at_start, where every block converts at once (docs/bridge.md)");
   out.def.region = conversion_region(s.blocks.region, s.has_structure ? structure_radius : 0.0);
   if (s.has_structure && structure) {
     out.def.has_structure = true;

@@ -97,9 +97,8 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
           << " or set /blocks/relax/damping (e.g. 0.5)";
         sim.blocks_.warnings.push_back(w.str());
       }
-      if (r.lattice_time > 0.0 && def.mode != bridge::ConversionMode::AllAtStart)
-        sim.blocks_.warnings.push_back("/blocks/relax/lattice_time: set, but only all_at_start converts before the "
-                                       "run; ignored in this conversion mode");
+      // (lattice_time, lattice_damping and blocks.lattice are all_at_start's settings: a keel scene
+      // carries them for its reference runs, and its hybrid and never runs pass them over quietly.)
       if (r.hold_freeze_bonds && !(r.lattice_time > 0.0 && def.mode == bridge::ConversionMode::AllAtStart))
         sim.blocks_.warnings.push_back("/blocks/relax/hold_freeze_bonds: set, but it acts only in all_at_start's "
                                        "lattice stage (blocks.conversion = all_at_start and blocks.relax.lattice_time "
