@@ -16,6 +16,21 @@ namespace hs::bridge {
 
 namespace {
 
+/// The figures a relaxation's report takes from where it ended.
+void take_end_state(RelaxReport& R, const RelaxProgress& P) {
+  R.time = P.time;
+  R.max_block_speed = P.max_block_speed;
+  R.max_particle_speed = P.max_particle_speed;
+  R.block_kinetic_energy = P.block_kinetic_energy;
+}
+
+/// The lattice stage's held freeze bonds (RelaxDef::hold_freeze_bonds), if it held them.
+void count_held_freeze_bonds(const bonded::Engine& e, RelaxReport& R) {
+  if (!e.bonds_unbreakable(bonded::BondKind::Freeze)) return;
+  R.freeze_bonds_held = e.bond_count(bonded::BondKind::Freeze);
+  R.freeze_bonds_overloaded = e.overloaded_bond_count(bonded::BondKind::Freeze);
+}
+
 /// Fastest point of a block: centre speed + |omega| x half diagonal (an upper bound).
 double block_speed(const rigid::RigidWorld& w, rigid::BlockId id) {
   return w.velocity(id).norm() + w.angular_velocity(id).norm() * w.half_extents(id).norm();
@@ -158,15 +173,9 @@ const RelaxReport& HybridSystem::relax(const RelaxDef& def, const RelaxProgressF
     set_damping(def.lattice_stage_damping());
     R.lattice_converged = run_stage(def.lattice_time) ? 1 : 0;
     R.lattice_time = P.time - t2;
-    if (engine_.bonds_unbreakable(bonded::BondKind::Freeze)) {
-      R.freeze_bonds_held = engine_.bond_count(bonded::BondKind::Freeze);
-      R.freeze_bonds_overloaded = engine_.overloaded_bond_count(bonded::BondKind::Freeze);
-    }
+    count_held_freeze_bonds(engine_, R);
   }
-  R.time = P.time;
-  R.max_block_speed = P.max_block_speed;
-  R.max_particle_speed = P.max_particle_speed;
-  R.block_kinetic_energy = P.block_kinetic_energy;
+  take_end_state(R, P);
   sheet_dz(R.sheet_mean_dz, R.sheet_max_dz);
   R.lattice_bonds_broken = broken_before + (engine_.stats().bonds_broken - broken0);
   if (R.stopped) return R;
