@@ -132,6 +132,16 @@ struct RigidWorld::Impl {
   std::vector<std::uint32_t> adj_start, adj, bfs_a, bfs_b;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;  // scratch of update_sleep
   std::size_t asleep_count = 0;
+  // Per block slot, what the per-sub-step passes over every block or joint ask of a block, one byte
+  // beside the 344-byte slots (kept with BlockSlot::alive, fixed and asleep: add_block,
+  // remove_block, put_to_sleep, wake). With most of a 29,000-block ridge asleep, those passes read
+  // the slots (and each joint's heap slot) only for awake blocks: reading every slot to find that
+  // its block sleeps was ~30 % of an idle rigid step (docs/rigid.md, "What a sub-step costs").
+  enum : std::uint8_t { kAlive = 1, kFixed = 2, kAsleep = 4 };
+  std::vector<std::uint8_t> state;
+  std::size_t slot_of(const BlockSlot& s) const { return static_cast<std::size_t>(&s - blocks.data()); }
+  /// Alive, dynamic and awake: a body the solver moves.
+  bool stepped(std::size_t k) const { return state[k] == kAlive; }
   // contact_forces(): every block's contact forces of the last sub-step, built on first use.
   std::vector<std::uint32_t> cf_start;
   std::vector<std::pair<Vec3, Vec3>> cf_list;  // (point, force)
@@ -249,7 +259,7 @@ struct RigidWorld::Impl {
     for (const IntactJoint& ij : intact_list()) {
       // Two sleeping blocks: the joint was not solved, its feedback and pose are unchanged since
       // it was last checked (and held).
-      if (blocks[ij.a].asleep && blocks[ij.b].asleep) continue;
+      if ((state[ij.a] & kAsleep) && (state[ij.b] & kAsleep)) continue;
       JointSlot& j = *joints[ij.slot];
       const btRigidBody& ba = *blocks[j.a.index].body;
       const Vec3 n = from_bt(ba.getWorldTransform().getBasis() * to_bt(j.normal_in_a));
@@ -289,6 +299,7 @@ struct RigidWorld::Impl {
     b.getBroadphaseHandle()->m_collisionFilterGroup |= kSleepingProxyBit;
     s.sleep_pose = b.getWorldTransform();
     s.asleep = true;
+    state[slot_of(s)] |= kAsleep;
     ++asleep_count;
   }
   void wake(BlockSlot& s) {
@@ -299,6 +310,7 @@ struct RigidWorld::Impl {
     b.forceActivationState(DISABLE_DEACTIVATION);
     b.getBroadphaseHandle()->m_collisionFilterGroup &= ~kSleepingProxyBit;
     s.asleep = false;
+    state[slot_of(s)] &= static_cast<std::uint8_t>(~kAsleep);
     --asleep_count;
   }
   // Before a solve: the joints it takes (CanonicalWorld::awake_joints), intact, enabled, with a
@@ -307,10 +319,9 @@ struct RigidWorld::Impl {
     auto& aj = world->awake_joints;
     aj.clear();
     for (const IntactJoint& ij : intact_list()) {
-      const BlockSlot& a = blocks[ij.a];
-      const BlockSlot& b = blocks[ij.b];
+      if (!stepped(ij.a) && !stepped(ij.b)) continue;  // before touching the joint's heap slot
       btTypedConstraint* c = joints[ij.slot]->constraint.get();
-      if (((!a.fixed && !a.asleep) || (!b.fixed && !b.asleep)) && c->isEnabled()) aj.push_back(c);
+      if (c->isEnabled()) aj.push_back(c);
     }
   }
   // After a solve: the sleeping blocks it took (a contact or joint with an awake block). Bullet's
@@ -571,6 +582,7 @@ BlockId RigidWorld::add_block(const BlockDef& d) {
   } else {
     idx = static_cast<std::uint32_t>(m.blocks.size());
     m.blocks.emplace_back();
+    m.state.push_back(0);
   }
   BlockSlot& s = m.blocks[idx];
   s.alive = true;
@@ -605,6 +617,7 @@ BlockId RigidWorld::add_block(const BlockDef& d) {
   }
   s.body->setUserIndex(static_cast<int>(idx));
   s.asleep = false;
+  m.state[idx] = static_cast<std::uint8_t>(d.fixed ? Impl::kAlive | Impl::kFixed : Impl::kAlive);
   s.still = m.def.far_sleep.enabled && m.def.far_sleep.start_asleep ? m.def.far_sleep.still_time : 0.0;
   m.world->addRigidBody(s.body.get());
   ++m.block_count;
@@ -623,6 +636,7 @@ void RigidWorld::remove_block(BlockId id) {
   s.body.reset();
   s.shape.reset();
   s.alive = false;
+  m.state[id.index] = 0;
   if (s.asleep) --m.asleep_count;
   s.asleep = false;
   s.still = 0.0;
@@ -668,8 +682,9 @@ void RigidWorld::substep() {
   wp.drag_coefficient = m.def.quadratic_drag_cd;
   wp.current = m.def.water_current;
   if (m.def.far_sleep.enabled) m.update_sleep(h);
-  for (BlockSlot& s : m.blocks) {
-    if (!s.alive || s.fixed || s.asleep) continue;
+  for (std::size_t k = 0; k < m.blocks.size(); ++k) {
+    if (!m.stepped(k)) continue;
+    BlockSlot& s = m.blocks[k];
     btRigidBody& b = *s.body;
     if (!s.imp_linear.isZero(0.0) || !s.imp_angular.isZero(0.0)) {
       b.applyCentralImpulse(to_bt(s.imp_linear));
