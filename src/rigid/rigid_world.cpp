@@ -137,11 +137,24 @@ struct RigidWorld::Impl {
   // remove_block, put_to_sleep, wake). With most of a 29,000-block ridge asleep, those passes read
   // the slots (and each joint's heap slot) only for awake blocks: reading every slot to find that
   // its block sleeps was ~30 % of an idle rigid step (docs/rigid.md, "What a sub-step costs").
-  enum : std::uint8_t { kAlive = 1, kFixed = 2, kAsleep = 4 };
+  // kLoaded: the caller loads it (a non-zero ext_force, ext_torque, imp_linear or imp_angular).
+  enum : std::uint8_t { kAlive = 1, kFixed = 2, kAsleep = 4, kLoaded = 8 };
   std::vector<std::uint8_t> state;
+  std::vector<std::uint32_t> gen;  // BlockSlot::generation, for the checks of asleep(id)
+  std::vector<Vec3> sleep_centre;  // BlockSlot::sleep_pose's origin (update_sleep's wake-zone test)
+  void set_loaded(std::size_t k) {
+    const BlockSlot& s = blocks[k];
+    const bool loaded = !s.ext_force.isZero(0.0) || !s.ext_torque.isZero(0.0) || !s.imp_linear.isZero(0.0) ||
+                        !s.imp_angular.isZero(0.0);
+    state[k] = static_cast<std::uint8_t>(loaded ? state[k] | kLoaded : state[k] & ~kLoaded);
+  }
+  void set_sleep_pose(BlockSlot& s, const btTransform& pose) {
+    s.sleep_pose = pose;
+    sleep_centre[slot_of(s)] = from_bt(pose.getOrigin());
+  }
   std::size_t slot_of(const BlockSlot& s) const { return static_cast<std::size_t>(&s - blocks.data()); }
   /// Alive, dynamic and awake: a body the solver moves.
-  bool stepped(std::size_t k) const { return state[k] == kAlive; }
+  bool stepped(std::size_t k) const { return (state[k] & (kAlive | kFixed | kAsleep)) == kAlive; }
   // contact_forces(): every block's contact forces of the last sub-step, built on first use.
   std::vector<std::uint32_t> cf_start;
   std::vector<std::pair<Vec3, Vec3>> cf_list;  // (point, force)
@@ -297,7 +310,7 @@ struct RigidWorld::Impl {
     b.forceActivationState(ISLAND_SLEEPING);
     world->updateSingleAabb(&b);  // a static box at its pose (a restored world computes the same)
     b.getBroadphaseHandle()->m_collisionFilterGroup |= kSleepingProxyBit;
-    s.sleep_pose = b.getWorldTransform();
+    set_sleep_pose(s, b.getWorldTransform());
     s.asleep = true;
     state[slot_of(s)] |= kAsleep;
     ++asleep_count;
@@ -381,13 +394,14 @@ struct RigidWorld::Impl {
     woken.assign(n, 0);
     reset.assign(n, 0);
     for (std::size_t k = 0; k < n; ++k) {
-      const BlockSlot& s = blocks[k];
-      if (!s.alive || s.fixed) continue;
-      if (!s.asleep) moving[k] = block_moving(s);
-      const bool loaded = !s.ext_force.isZero(0.0) || !s.ext_torque.isZero(0.0) || !s.imp_linear.isZero(0.0) ||
-                          !s.imp_angular.isZero(0.0);
-      const btTransform& pose = s.asleep ? s.sleep_pose : s.body->getWorldTransform();
-      if (loaded || in_wake_zone(from_bt(pose.getOrigin()))) woken[k] = 1;
+      const std::uint8_t st = state[k];
+      if ((st & (kAlive | kFixed)) != kAlive) continue;
+      // (a sleeping block's slot is not read: its centre and flags are kept beside it)
+      const bool asleep = st & kAsleep;
+      if (!asleep) moving[k] = block_moving(blocks[k]);
+      if ((st & kLoaded) ||
+          in_wake_zone(asleep ? sleep_centre[k] : from_bt(blocks[k].body->getWorldTransform().getOrigin())))
+        woken[k] = 1;
     }
     // Every block within wake_hops contacts or joints of a moving block (or of one the caller loads
     // now) is woken, or kept from falling asleep: the solver carries an impulse a few blocks per
@@ -439,17 +453,17 @@ struct RigidWorld::Impl {
           const std::uint32_t b = adj[e];
           if (seen[b]) continue;
           seen[b] = 1;
-          (blocks[b].asleep ? woken[b] : reset[b]) = 1;
+          ((state[b] & kAsleep) ? woken[b] : reset[b]) = 1;
           next.push_back(b);
         }
       std::swap(front, next);
     }
     for (std::size_t k = 0; k < n; ++k) {
-      BlockSlot& s = blocks[k];
-      if (!s.alive || s.fixed) continue;
+      if ((state[k] & (kAlive | kFixed)) != kAlive) continue;
       if (woken[k] || reset[k] || moving[k]) {
-        wake(s);
-      } else if (!s.asleep) {
+        wake(blocks[k]);
+      } else if (!(state[k] & kAsleep)) {
+        BlockSlot& s = blocks[k];
         s.still += h;
         if (s.still >= def.far_sleep.still_time) put_to_sleep(s);
       }
@@ -583,6 +597,8 @@ BlockId RigidWorld::add_block(const BlockDef& d) {
     idx = static_cast<std::uint32_t>(m.blocks.size());
     m.blocks.emplace_back();
     m.state.push_back(0);
+    m.gen.push_back(0);
+    m.sleep_centre.emplace_back(Vec3::Zero());
   }
   BlockSlot& s = m.blocks[idx];
   s.alive = true;
@@ -618,6 +634,7 @@ BlockId RigidWorld::add_block(const BlockDef& d) {
   s.body->setUserIndex(static_cast<int>(idx));
   s.asleep = false;
   m.state[idx] = static_cast<std::uint8_t>(d.fixed ? Impl::kAlive | Impl::kFixed : Impl::kAlive);
+  m.gen[idx] = s.generation;
   s.still = m.def.far_sleep.enabled && m.def.far_sleep.start_asleep ? m.def.far_sleep.still_time : 0.0;
   m.world->addRigidBody(s.body.get());
   ++m.block_count;
@@ -642,6 +659,7 @@ void RigidWorld::remove_block(BlockId id) {
   s.still = 0.0;
   m.cf_step = UINT64_MAX;
   ++s.generation;
+  m.gen[id.index] = s.generation;
   s.ext_force.setZero();
   s.ext_torque.setZero();
   s.imp_linear.setZero();
@@ -691,6 +709,7 @@ void RigidWorld::substep() {
       b.applyTorqueImpulse(to_bt(s.imp_angular));
       s.imp_linear.setZero();
       s.imp_angular.setZero();
+      m.set_loaded(k);
     }
     Vec3 f = s.ext_force, t = s.ext_torque;
     if (m.def.water) {
@@ -711,7 +730,14 @@ void RigidWorld::substep() {
     ms.origin += h * ms.velocity;
     ms.body->setWorldTransform(btTransform(btQuaternion::getIdentity(), to_bt(ms.origin)));
   }
-  if (m.world->managed_sleep) m.collect_awake_joints();
+  if (m.world->managed_sleep) {
+    m.collect_awake_joints();
+    auto& st = m.world->stepped;  // what Bullet's per-body passes walk (CanonicalWorld::stepSimulation)
+    st.clear();
+    for (std::size_t k = 0; k < m.blocks.size(); ++k)
+      if (m.stepped(k)) st.push_back(m.blocks[k].body.get());
+    for (const auto& mp : m.meshes) st.push_back(mp->body.get());
+  }
   // maxSubSteps = 0: exactly one internal step of h; forces are cleared afterwards.
   m.world->stepSimulation(h, 0, h);
   if (m.world->managed_sleep) m.settle_sleepers();
@@ -756,7 +782,7 @@ void RigidWorld::set_velocity(BlockId id, const Vec3& v, const Vec3& w) {
 void RigidWorld::set_pose(BlockId id, const Vec3& x, const Quat& q) {
   BlockSlot& s = impl_->block(id);
   s.body->setWorldTransform(btTransform(to_bt(q.normalized()), to_bt(x)));
-  s.sleep_pose = s.body->getWorldTransform();  // far sleep's copy (BlockSlot)
+  impl_->set_sleep_pose(s, s.body->getWorldTransform());  // far sleep's copy (BlockSlot)
   // Keep the broadphase in step for static blocks moved by the caller.
   impl_->world->updateSingleAabb(s.body.get());
 }
@@ -779,12 +805,14 @@ void RigidWorld::add_force(BlockId id, const Vec3& f, const Vec3& point) {
   const Vec3 c = from_bt(s.body->getWorldTransform().getOrigin());
   s.ext_force += f;
   s.ext_torque += (point - c).cross(f);
+  impl_->set_loaded(id.index);
 }
 
 void RigidWorld::clear_external_forces() {
-  for (BlockSlot& s : impl_->blocks) {
-    s.ext_force.setZero();
-    s.ext_torque.setZero();
+  for (std::size_t k = 0; k < impl_->blocks.size(); ++k) {
+    impl_->blocks[k].ext_force.setZero();
+    impl_->blocks[k].ext_torque.setZero();
+    impl_->set_loaded(k);
   }
 }
 
@@ -793,11 +821,19 @@ void RigidWorld::add_impulse(BlockId id, const Vec3& j, const Vec3& point) {
   const Vec3 c = from_bt(s.body->getWorldTransform().getOrigin());
   s.imp_linear += j;
   s.imp_angular += (point - c).cross(j);
+  impl_->set_loaded(id.index);
 }
 
 void RigidWorld::set_wake_boxes(const std::vector<std::pair<Vec3, Vec3>>& boxes) { impl_->wake_boxes = boxes; }
 
-bool RigidWorld::asleep(BlockId id) const { return impl_->block(id).asleep; }
+bool RigidWorld::asleep(BlockId id) const {
+  // From the bytes beside the slots (the hybrid asks this of every block every rigid step), with
+  // block()'s check of the id.
+  const Impl& m = *impl_;
+  if (id.index >= m.state.size() || !(m.state[id.index] & Impl::kAlive) || m.gen[id.index] != id.generation)
+    throw std::out_of_range("rigid: stale or invalid BlockId " + std::to_string(id.index));
+  return m.state[id.index] & Impl::kAsleep;
+}
 
 std::size_t RigidWorld::awake_count() const {
   std::size_t n = 0;
@@ -1298,10 +1334,12 @@ void RigidWorld::Impl::restore_blocks(const std::vector<BlockRecord>& saved) {
     BlockSlot& s = blocks[k];
     const BlockRecord& r = saved[k];
     s.generation = r.generation;
+    gen[k] = r.generation;
     s.ext_force = r.ext_force;
     s.ext_torque = r.ext_torque;
     s.imp_linear = r.imp_linear;
     s.imp_angular = r.imp_angular;
+    set_loaded(k);
     if (r.alive) {
       if (!s.alive)
         throw std::runtime_error("rigid world checkpoint: block " + std::to_string(k) + " is alive in the checkpoint "
