@@ -132,6 +132,7 @@ struct RigidWorld::Impl {
   std::vector<std::uint32_t> adj_start, adj, bfs_a, bfs_b;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;  // scratch of update_sleep
   std::size_t asleep_count = 0;
+  detail::PairIndex pair_index;  // the overlapping pairs by proxy (far sleep: CanonicalWorld's dispatch)
   // Per block slot, what the per-sub-step passes over every block or joint ask of a block, one byte
   // beside the 344-byte slots (kept with BlockSlot::alive, fixed and asleep: add_block,
   // remove_block, put_to_sleep, wake). With most of a 29,000-block ridge asleep, those passes read
@@ -562,6 +563,8 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
     m.world->managed_sleep = true;
     m.world->setForceUpdateAllAabbs(false);  // sleeping blocks keep theirs
     m.dispatcher->setNearCallback(&far_sleep_near_callback);
+    m.broadphase->getOverlappingPairCache()->setInternalGhostPairCallback(&m.pair_index);
+    m.world->pair_index = &m.pair_index;
   }
   if (def.fixed_friction_directions)
     m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |

@@ -204,10 +204,15 @@ struct AwakeBesideAsleep {
   BlockId asleep, awake;
   Vec3 x0;
   Quat q0;
-  AwakeBesideAsleep(double gap, bool far_sleep = true) : w(hopless(far_sleep)) {
+  // field: 36 more floes, touching one another in a 6 x 6 square 10 m away (see
+  // FarSleep.PairIndexDispatch...).
+  AwakeBesideAsleep(double gap, bool far_sleep = true, bool field = false) : w(hopless(far_sleep)) {
     w.add_kinematic_mesh(wall_mesh(2.0, Vec3(-50, 0, 0), Vec3::Zero()));
     asleep = w.add_block(floe(0.0));
     awake = w.add_block(floe(1.0 + gap));
+    if (field)
+      for (int i = 0; i < 6; ++i)
+        for (int j = 0; j < 6; ++j) w.add_block(floe(10.0 + i, 10.0 + j));
     w.step(0.05);
     x0 = w.position(asleep);
     q0 = w.orientation(asleep);
@@ -254,6 +259,36 @@ TEST(FarSleep, AwakeBlockHittingSleepingBlockWakesIt) {
   EXPECT_LT(worst, 3e-3);          // m; measured 2.6e-4
   std::printf("[ far sleep ] hit floe at x = %.4f m (far sleep) vs %.4f m (all awake); worst difference %.2e m\n",
               end[1][0].x(), end[0][0].x(), worst);
+}
+
+TEST(FarSleep, PairIndexDispatchKeepsTheContactOfAnAwakeAndASleepingBlock) {
+  // The two tests above beside a field of 36 sleeping floes that touch one another: their ~100
+  // overlapping pairs outnumber four times the pairs the stepped bodies list (the awake floe's one
+  // and the wall's none), so every step dispatches through the pair index instead of Bullet's walk
+  // over all pairs (CanonicalWorld::performDiscreteCollisionDetection). The same results: held to
+  // 1e-3 m and the sleeping floe's pose to the last bit; hit, it moves as with every block awake.
+  // Fails when the index leaves out the pair of an awake and a sleeping block (checked).
+  {
+    AwakeBesideAsleep s(0.0, true, true);
+    ASSERT_TRUE(s.w.asleep(s.asleep));
+    s.w.add_force(s.awake, Vec3(-500.0, 0, 0), s.w.position(s.awake));
+    s.w.step(3.0);
+    EXPECT_TRUE(s.w.asleep(s.asleep));
+    EXPECT_TRUE(same_pose(s.w, s.asleep, s.x0, s.q0));
+    EXPECT_NEAR(s.w.position(s.awake).x(), 1.0, 1e-3);  // m; measured 8e-5, as without the field
+  }
+  Vec3 end[2];
+  for (const bool on : {true, false}) {
+    AwakeBesideAsleep s(0.2, on, true);
+    s.w.add_force(s.awake, Vec3(-500.0, 0, 0), s.w.position(s.awake));
+    s.w.step(3.0);
+    EXPECT_FALSE(s.w.asleep(s.asleep));
+    end[on] = s.w.position(s.asleep);
+  }
+  EXPECT_LT(end[0].x(), -0.1);                // the hit floe was pushed
+  EXPECT_LT((end[1] - end[0]).norm(), 3e-3);  // m; measured 2.6e-4, as without the field
+  std::printf("[ far sleep ] beside 36 sleeping floes: hit floe at x = %.4f m (far sleep) vs %.4f m (all awake)\n",
+              end[1].x(), end[0].x());
 }
 
 TEST(FarSleep, JointToSleepingBlockHolds) {
