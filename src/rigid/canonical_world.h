@@ -207,7 +207,6 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
     m_nonStaticRigidBodies.copyFromArray(all_nonstatic_);
     return n;
   }
-  // (Outside stepSimulation, e.g. the collision pass of a checkpoint restore, Bullet's own.)
   /// With managed_sleep: the overlapping pairs as PairIndex lists them (set by the owner before any
   /// body is added). A managed step then dispatches only the pairs with a stepped body, each once, to
   /// the dispatcher's near callback: the others (two sleeping blocks, or a sleeping and a fixed one)
@@ -242,6 +241,7 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
     }
     for (btRigidBody* b : stepped) mark(b->getBroadphaseHandle(), 0);
   }
+  // (Outside stepSimulation, e.g. the collision pass of a checkpoint restore, Bullet's own.)
   void updateAabbs() override {
     if (!in_step_ || m_forceUpdateAllAabbs) return btDiscreteDynamicsWorld::updateAabbs();
     for (btRigidBody* b : by_world_index_)

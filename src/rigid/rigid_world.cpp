@@ -703,10 +703,13 @@ void RigidWorld::substep() {
   wp.drag_coefficient = m.def.quadratic_drag_cd;
   wp.current = m.def.water_current;
   if (m.def.far_sleep.enabled) m.update_sleep(h);
+  auto& stepped = m.world->stepped;  // what Bullet's per-body passes walk under far sleep (CanonicalWorld)
+  stepped.clear();
   for (std::size_t k = 0; k < m.blocks.size(); ++k) {
     if (!m.stepped(k)) continue;
     BlockSlot& s = m.blocks[k];
     btRigidBody& b = *s.body;
+    if (m.world->managed_sleep) stepped.push_back(&b);
     if (!s.imp_linear.isZero(0.0) || !s.imp_angular.isZero(0.0)) {
       b.applyCentralImpulse(to_bt(s.imp_linear));
       b.applyTorqueImpulse(to_bt(s.imp_angular));
@@ -735,11 +738,7 @@ void RigidWorld::substep() {
   }
   if (m.world->managed_sleep) {
     m.collect_awake_joints();
-    auto& st = m.world->stepped;  // what Bullet's per-body passes walk (CanonicalWorld::stepSimulation)
-    st.clear();
-    for (std::size_t k = 0; k < m.blocks.size(); ++k)
-      if (m.stepped(k)) st.push_back(m.blocks[k].body.get());
-    for (const auto& mp : m.meshes) st.push_back(mp->body.get());
+    for (const auto& mp : m.meshes) stepped.push_back(mp->body.get());
   }
   // maxSubSteps = 0: exactly one internal step of h; forces are cleared afterwards.
   m.world->stepSimulation(h, 0, h);
