@@ -1,6 +1,7 @@
 #include "app/run_summary.h"
 
 #include "app/text.h"
+#include "bridge/conversion_criteria.h"
 #include "parallel/comm.h"
 
 #include <algorithm>
@@ -87,7 +88,7 @@ void print_blocks(std::ostream& out, const sim::Simulation& sim) {
       << " handed over to particle bonds at conversions (" << r.block_bonds_unmatched
       << " released with no new particle within 1.5 D), " << h.block_particle_bonds_broken() << " broken\n";
   out << "  conversions governed by: freeze bonds " << r.conversions_freeze << ", flexure " << r.conversions_flexure
-      << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
+      << ", crushing " << r.conversions_by(bridge::kCrushingCriterion) << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
       << "largest utilisation seen " << sci(r.max_utilisation, 3) << "; conversion KE change "
       << sci(r.kinetic_energy_change, 3) << " J\n";
   const auto& x = h.relax_report();

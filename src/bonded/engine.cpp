@@ -913,7 +913,7 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
       << ")";
     if (worst_overlap_source_ >= 0 && worst_overlap_i_ < ps_.size())
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and "
-        << sources_[static_cast<std::size_t>(worst_overlap_source_)]->name();
+        << sources_[static_cast<std::size_t>(worst_overlap_source_)]->describe_worst(ps_, worst_overlap_i_);
     else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size()) {
       const std::uint32_t i = worst_overlap_i_, j = worst_overlap_j_;
       s << " between particles " << ps_.gid[i] << " and " << ps_.gid[j];

@@ -266,6 +266,7 @@ bonded::ForceSourceResult BlockContact::add_forces(bonded::ParticleStore& ps, st
       if (delta / r > res.worst_overlap_ratio) {
         res.worst_overlap_ratio = delta / r;
         res.worst_particle = static_cast<std::uint32_t>(i);
+        worst_block_ = k;
       }
     }
   }
@@ -277,6 +278,28 @@ bonded::ForceSourceResult BlockContact::add_forces(bonded::ParticleStore& ps, st
   history_.swap(next_history_);
   stats_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return res;
+}
+
+std::string BlockContact::describe_worst(const bonded::ParticleStore& ps, std::uint32_t i) const {
+  if (worst_block_ >= blocks_.size() || i >= ps.size()) return name();
+  const ContactBlock& b = blocks_[worst_block_];
+  std::ostringstream s;
+  s.precision(4);
+  s << "rigid block " << b.id << " (centre (" << b.position.transpose() << ") m, half extents ("
+    << b.half_extents.transpose() << ") m, velocity (" << b.velocity.transpose() << ") m/s, angular velocity "
+    << b.angular_velocity.norm() << " rad/s" << (std::isinf(b.mass) ? ", immovable" : "") << ")";
+  // How fast they close along the contact normal, from the state this step's forces saw.
+  const Mat3 R = b.orientation.toRotationMatrix();
+  const Vec3 rel = ps.x[i] - b.position;
+  BoxContact bc;
+  if (box_contact(R.transpose() * rel, b.half_extents, R, ps.radius[i], bc)) {
+    const Vec3 a = -(ps.radius[i] - 0.5 * bc.delta) * bc.n;
+    const Vec3 vrel = ps.v[i] + ps.omega[i].cross(a) - b.velocity - b.angular_velocity.cross(rel + a);
+    const double vn = vrel.dot(bc.n);
+    s << "; the particle at (" << ps.x[i].transpose() << ") m, moving at " << ps.v[i].norm() << " m/s, "
+      << (vn <= 0.0 ? "closes on" : "parts from") << " it at " << std::abs(vn) << " m/s along the contact normal";
+  }
+  return s.str();
 }
 
 namespace {

@@ -108,6 +108,9 @@ class BlockContact final : public bonded::ForceSource {
   bonded::ForceSourceResult add_forces(bonded::ParticleStore& ps, std::size_t n_owned,
                                        const bonded::ForceSourceContext& ctx) override;
   const char* name() const override { return "rigid block"; }
+  /// "rigid block <id> (centre ... m, velocity ... m/s, ...); they close at ... m/s": the block of
+  /// the deepest contact of the last add_forces() call, for the blow-up message.
+  std::string describe_worst(const bonded::ParticleStore& ps, std::uint32_t i) const override;
   /// MPI: the tangential springs of leaving particles travel with them (bonded::ForceSource).
   void pack_history(const std::unordered_map<GlobalId, int>& leaving, std::vector<par::Bytes>& out) override;
   void unpack_history(const char* data, std::size_t size) override;
@@ -137,6 +140,7 @@ class BlockContact final : public bonded::ForceSource {
   std::vector<BlockLoad> loads_;
   std::unordered_map<Key, Vec3, KeyHash> history_, next_history_;  ///< tangential springs
   BlockContactStats stats_;
+  std::size_t worst_block_ = 0;  ///< block index k of the deepest contact of the last add_forces()
   bool record_ = false;
   std::vector<PointForce> recorded_;
   // Block grid (rebuilt every call): cell -> blocks whose box, grown by r_max, meets it; only the

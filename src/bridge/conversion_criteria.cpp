@@ -1,5 +1,6 @@
 #include "bridge/conversion_criteria.h"
 
+#include "bridge/criterion_crushing.h"
 #include "bridge/criterion_flexure.h"
 #include "bridge/criterion_freeze_bond.h"
 
@@ -8,10 +9,12 @@
 namespace hs::bridge {
 
 std::span<const NamedCriterion> conversion_criteria() {
-  // One line per criterion; the order is kFreezeBondCriterion, kFlexureCriterion, then any others.
+  // One line per criterion; the order is kFreezeBondCriterion, kFlexureCriterion,
+  // kCrushingCriterion, then any others.
   static const std::array list{
       NamedCriterion{"freeze_bond", &freeze_bond_utilisation},
       NamedCriterion{"flexure", &flexure_utilisation},
+      NamedCriterion{"crushing", &crushing_utilisation},
   };
   return list;
 }

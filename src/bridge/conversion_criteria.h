@@ -11,6 +11,7 @@
 
 #include "bridge/block_stress.h"
 
+#include <cmath>
 #include <cstddef>
 #include <span>
 #include <vector>
@@ -26,12 +27,19 @@ struct BlockLoads {
   std::vector<PointLoad> loads;
   double bond_u_tension = 0.0;  ///< largest stress / strength of its block-particle freeze bonds, tension
   double bond_u_shear = 0.0;    ///< ... shear
+  /// N: the largest force (magnitude) that one particle contact puts on it (crushing criterion).
+  double particle_contact_force = 0.0;
 };
 
 /// The capacities the criteria compare the loads with.
 struct ConversionStrengths {
   FreezeBondStrength freeze;         ///< of the joints between blocks
   double flexural_strength = 0.5e6;  ///< sigma_f, Pa
+  /// N: the force of one particle contact at which the block's face crushes: the force that
+  /// crushes a lattice bond of the particles it would become (compressive strength x bond area).
+  /// Infinite (the default, and when the lattice's bonds do not break in compression): no
+  /// crushing criterion.
+  double contact_crushing_force = INFINITY;
 };
 
 /// u >= 0 of one block; throws hs::InputError for impossible input (block_stress.h).
@@ -44,8 +52,8 @@ struct NamedCriterion {
 
 /// The criteria in order: a tie goes to the earlier one.
 std::span<const NamedCriterion> conversion_criteria();
-/// Positions of the two built-in criteria in conversion_criteria() (HybridReport's counters).
-inline constexpr std::size_t kFreezeBondCriterion = 0, kFlexureCriterion = 1;
+/// Positions of the built-in criteria in conversion_criteria() (HybridReport's counters).
+inline constexpr std::size_t kFreezeBondCriterion = 0, kFlexureCriterion = 1, kCrushingCriterion = 2;
 
 struct ConversionDecision {
   double utilisation = 0.0;  ///< max over the criteria

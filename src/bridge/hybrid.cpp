@@ -413,7 +413,11 @@ void collect_block_loads(const rigid::RigidWorld& world, rigid::BlockId id, std:
   }
   out.loads.clear();
   for (const auto& c : world.contact_forces(id)) out.loads.push_back({c.point, c.force});
-  for (const auto& pf : g.contact[k]) out.loads.push_back(pf);
+  out.particle_contact_force = 0.0;
+  for (const auto& pf : g.contact[k]) {
+    out.loads.push_back(pf);
+    out.particle_contact_force = std::max(out.particle_contact_force, pf.force.norm());
+  }
   out.bond_u_tension = out.bond_u_shear = 0.0;
   if (id.index < g.bond.size()) {
     for (const auto& bf : g.bond[id.index]) out.loads.push_back(bf);
@@ -461,6 +465,7 @@ void HybridSystem::apply_policy() {
                                                             ? m.def.world.freeze_bond_strength
                                                             : m.def.world.freeze_bond_shear_strength};
   strengths.flexural_strength = m.def.flexural_strength;
+  strengths.contact_crushing_force = m.def.contact_crushing_force;
   // Rank 0 gathers the particle side's loads, decides, and broadcasts the list of blocks to
   // convert, so that every rank's replicated world converts the same blocks. The block-particle
   // freeze bonds' forces are loads for the flexural criterion, and their stress over strength

@@ -77,8 +77,12 @@ struct HybridReport {
   std::uint64_t conversions_flexure = 0;  ///< ... by the flexural estimate
   /// Conversions by governing criterion, indexed like conversion_criteria() (empty before the first).
   std::vector<std::uint64_t> conversions_by_criterion;
+  /// Conversions governed by criterion c (0 when none yet).
+  std::uint64_t conversions_by(std::size_t c) const {
+    return c < conversions_by_criterion.size() ? conversions_by_criterion[c] : 0;
+  }
   std::uint64_t joints_released = 0;      ///< freeze joints removed with converted blocks
-  double max_utilisation = 0.0;           ///< largest max(u_freeze, u_flex) seen in the region
+  double max_utilisation = 0.0;           ///< largest utilisation (any criterion) seen in the region
   std::uint64_t conversions_refused = 0;   ///< blocks the converter could not fill (thinner than
                                           ///< D, or every site overlapping particles): stay rigid
   std::size_t blocks_moved_clear = 0;     ///< blocks shifted at the start to clear the particles
@@ -201,6 +205,8 @@ struct HybridDef {
   ConversionRegion region;
   double safety_factor = 1.0;
   double flexural_strength = 0.5e6;       ///< Pa
+  /// N: one particle contact's force that crushes a block's face (ConversionStrengths); infinite = never.
+  double contact_crushing_force = INFINITY;
   /// Time constant of the low-pass filter on each block's utilisation, s (0 = none). Bullet
   /// resolves a collision in one step with an impulse whose force (impulse / step) is far above
   /// the sustained load; the filter lets a load count only when it lasts (docs/bridge.md).

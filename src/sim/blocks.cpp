@@ -53,6 +53,13 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   d.flexural_strength = b.flexural_strength > 0.0                                   ? b.flexural_strength
                         : ci.model == "calibrated" && ci.flexural_strength > 0.0 ? ci.flexural_strength
                                                                                   : s.analysis.flexural_strength;
+  // The crushing criterion: a particle contact pressing a block as hard as would crush one of the
+  // lattice's own bonds (compressive strength x bond area) converts it (criterion_crushing.h).
+  // Off when the lattice's bonds do not break in compression.
+  if (std::isfinite(s.bonds.compressive_strength_ratio)) {
+    const double rb = s.bonds.radius_ratio * 0.5 * s.material.particle_diameter;
+    d.contact_crushing_force = s.bonds.compressive_strength_ratio * ci.bond_tensile_strength * kPi * rb * rb;
+  }
   return d;
 }
 

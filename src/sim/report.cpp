@@ -1,5 +1,6 @@
 #include "sim/report.h"
 
+#include "bridge/conversion_criteria.h"
 #include "common/error.h"
 #include "common/ice_formulas.h"
 #include "io/run_file_edit.h"
@@ -131,6 +132,7 @@ void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
       {"sites_dropped", static_cast<double>(r.sites_dropped)},
       {"conversions_freeze", static_cast<double>(r.conversions_freeze)},
       {"conversions_flexure", static_cast<double>(r.conversions_flexure)},
+      {"conversions_crushing", static_cast<double>(r.conversions_by(bridge::kCrushingCriterion))},
       {"conversions_refused", static_cast<double>(r.conversions_refused)},
       {"max_utilisation", r.max_utilisation},
       {"blocks_moved_clear", static_cast<double>(r.blocks_moved_clear)},
