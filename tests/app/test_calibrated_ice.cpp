@@ -5,6 +5,7 @@
 #include "common/hcp_geometry.h"
 #include "common/ice_formulas.h"
 #include "scene/scene.h"
+#include "sim/blocks.h"
 #include "sim/build.h"
 #include "sim/calibrated_ice.h"
 
@@ -172,6 +173,11 @@ TEST(CalibratedIce, CompressiveStrengthAsAMultipleOfTheLatticeBondsTensile) {
   EXPECT_DOUBLE_EQ(d.bond[0].sigma_cc, 3.0 * ci.bond_tensile_strength);
   EXPECT_DOUBLE_EQ(d.bond[1].sigma_cc, d.bond[0].sigma_cc) << "freeze bonds crush as the ice does";
   EXPECT_EQ(sim::engine_def(scene_from(fill(", \"flexural_strength\": 5e4"))).bond[0].sigma_cc, INFINITY);
+  // The blocks' crushing criterion: the force that crushes one lattice bond (compressive strength
+  // x bond area); none when bonds do not crush.
+  EXPECT_DOUBLE_EQ(sim::block_setup(s, nullptr, 0.0).def.contact_crushing_force, d.bond[0].sigma_cc * d.bond[0].area());
+  EXPECT_EQ(sim::block_setup(scene_from(fill(", \"flexural_strength\": 5e4")), nullptr, 0.0).def.contact_crushing_force,
+            INFINITY);
   try {
     scene_from(fill("", ", \"bonds\": {\"compressive_strength_ratio\": 0}"));
     FAIL() << "accepted 0";

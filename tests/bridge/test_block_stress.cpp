@@ -343,9 +343,10 @@ TEST(BlockStress, ConversionRuleAndSafetyFactor) {
 // criterion only when they exceed the joints.
 TEST(BlockStress, CriteriaListMatchesTheEstimates) {
   const auto criteria = conversion_criteria();
-  ASSERT_EQ(criteria.size(), 2u);
+  ASSERT_EQ(criteria.size(), 3u);
   EXPECT_STREQ(criteria[kFreezeBondCriterion].name, "freeze_bond");
   EXPECT_STREQ(criteria[kFlexureCriterion].name, "flexure");
+  EXPECT_STREQ(criteria[kCrushingCriterion].name, "crushing");
   BlockLoads b;
   b.box = slab();
   b.loads = random_loads(b.box, 6, 7);
@@ -379,6 +380,14 @@ TEST(BlockStress, CriteriaListMatchesTheEstimates) {
   d = evaluate_criteria(b, s);
   EXPECT_EQ(d.governing, static_cast<int>(kFreezeBondCriterion));
   EXPECT_EQ(d.utilisation, u_b);
+  // Crushing: the largest particle contact force over the crushing force; none while that is
+  // infinite (the default: bonds that do not crush).
+  b.particle_contact_force = 900.0;
+  EXPECT_EQ(criteria[kCrushingCriterion].utilisation(b, s), 0.0);
+  s.contact_crushing_force = 300.0;
+  EXPECT_EQ(criteria[kCrushingCriterion].utilisation(b, s), 3.0);
+  d = evaluate_criteria(b, s);
+  EXPECT_EQ(d.governing, 3.0 > u_b ? static_cast<int>(kCrushingCriterion) : static_cast<int>(kFreezeBondCriterion));
   BlockLoads none;
   none.box = slab();
   d = evaluate_criteria(none, s);
