@@ -911,20 +911,21 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
     s << "contact overlap reached " << worst_overlap_ratio_
       << " of the particle radius (limit stability.max_overlap_ratio = " << def_.limits.max_overlap_ratio
       << ")";
+    // How the pair arrived in this step: the mid-step velocities v(n+1/2), which this step's push
+    // on the overlap has not yet changed (an owned particle holds v(n+1) here, a ghost v(n+1/2)).
+    // Closing fast is an impact, slowly a squeeze; an overlap that parts them was already there.
+    const auto mid = [&](std::uint32_t k) {
+      return k < ps_.owned() ? Vec3(ps_.v[k] - 0.5 * dt_ * ps_.inv_mass[k] * ps_.f[k]) : ps_.v[k];
+    };
     if (worst_overlap_source_ >= 0 && worst_overlap_i_ < ps_.size())
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and "
-        << sources_[static_cast<std::size_t>(worst_overlap_source_)]->describe_worst(ps_, worst_overlap_i_);
+        << sources_[static_cast<std::size_t>(worst_overlap_source_)]->describe_worst(ps_, worst_overlap_i_,
+                                                                                      mid(worst_overlap_i_));
     else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ < ps_.size()) {
       const std::uint32_t i = worst_overlap_i_, j = worst_overlap_j_;
       s << " between particles " << ps_.gid[i] << " and " << ps_.gid[j];
       crushed = squeezed_break(ps_.gid[i], ps_.gid[j]);
       bad_overlap = true;
-      // How they arrived in this step: the mid-step velocities v(n+1/2), which this step's push
-      // on the overlap has not yet changed (an owned particle holds v(n+1) here, a ghost v(n+1/2)).
-      // Closing fast is an impact, slowly a squeeze; an overlap that parts them was already there.
-      const auto mid = [&](std::uint32_t k) {
-        return k < ps_.owned() ? Vec3(ps_.v[k] - 0.5 * dt_ * ps_.inv_mass[k] * ps_.f[k]) : ps_.v[k];
-      };
       const Vec3 vi = mid(i), vj = mid(j);
       const Vec3 n = (ps_.x[j] - ps_.x[i]).normalized();
       const double closing = -(vj - vi).dot(n);
@@ -932,7 +933,9 @@ void Engine::check_blowup(std::uint32_t worst, double worst_v2, bool unstable_an
         << " m/s along their line of centres (speeds " << vi.norm() << " and " << vj.norm() << " m/s in this step)";
     }
     else if (worst_overlap_i_ < ps_.size() && worst_overlap_j_ == ParticleStore::kNone)
-      s << " between particle " << ps_.gid[worst_overlap_i_] << " and a mesh structure";
+      s << " between particle " << ps_.gid[worst_overlap_i_] << " and a mesh structure (the particle at ("
+        << ps_.x[worst_overlap_i_].transpose() << ") m, moving at " << mid(worst_overlap_i_).norm()
+        << " m/s in this step)";
     else if (worst_overlap_i_ < ps_.size())
       s << " between particle " << ps_.gid[worst_overlap_i_] << " and wall '"
         << walls_[ParticleStore::kNone - 1 - worst_overlap_j_].name << "'";

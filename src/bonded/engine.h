@@ -98,9 +98,12 @@ class ForceSource {
   /// For diagnostics ("contact overlap ... between particle 12 and <name>").
   virtual const char* name() const { return "an external force source"; }
   /// For the blow-up message: the body on the source's side of its worst contact in the last
-  /// add_forces() call, whose particle was local index i ("rigid block 17 at (...) moving at ...").
+  /// add_forces() call, whose particle was local index i and moved at v_mid in this step (its
+  /// mid-step velocity, which the step's forces saw) ("rigid block 17 at (...) moving at ...").
   /// The default is name().
-  virtual std::string describe_worst(const ParticleStore& /*ps*/, std::uint32_t /*i*/) const { return name(); }
+  virtual std::string describe_worst(const ParticleStore& /*ps*/, std::uint32_t /*i*/, const Vec3& /*v_mid*/) const {
+    return name();
+  }
   /// MPI migration of per-particle state (e.g. tangential springs), so that it travels with its
   /// particle as the engine's own contact history does. pack_history: for every particle in
   /// `leaving` (global id -> destination rank) append its records to out[rank] (the source's own

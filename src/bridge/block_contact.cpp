@@ -280,24 +280,24 @@ bonded::ForceSourceResult BlockContact::add_forces(bonded::ParticleStore& ps, st
   return res;
 }
 
-std::string BlockContact::describe_worst(const bonded::ParticleStore& ps, std::uint32_t i) const {
+std::string BlockContact::describe_worst(const bonded::ParticleStore& ps, std::uint32_t i, const Vec3& v_mid) const {
   if (worst_block_ >= blocks_.size() || i >= ps.size()) return name();
   const ContactBlock& b = blocks_[worst_block_];
   std::ostringstream s;
-  s.precision(4);
+  s.precision(6);
   s << "rigid block " << b.id << " (centre (" << b.position.transpose() << ") m, half extents ("
     << b.half_extents.transpose() << ") m, velocity (" << b.velocity.transpose() << ") m/s, angular velocity "
     << b.angular_velocity.norm() << " rad/s" << (std::isinf(b.mass) ? ", immovable" : "") << ")";
-  // How fast they close along the contact normal, from the state this step's forces saw.
+  // How fast they close along the contact normal (n from the block to the particle), with the
+  // particle's mid-step velocity and the block's as the step saw it; the spin's share is left out.
   const Mat3 R = b.orientation.toRotationMatrix();
   const Vec3 rel = ps.x[i] - b.position;
   BoxContact bc;
   if (box_contact(R.transpose() * rel, b.half_extents, R, ps.radius[i], bc)) {
     const Vec3 a = -(ps.radius[i] - 0.5 * bc.delta) * bc.n;
-    const Vec3 vrel = ps.v[i] + ps.omega[i].cross(a) - b.velocity - b.angular_velocity.cross(rel + a);
-    const double vn = vrel.dot(bc.n);
-    s << "; the particle at (" << ps.x[i].transpose() << ") m, moving at " << ps.v[i].norm() << " m/s, "
-      << (vn <= 0.0 ? "closes on" : "parts from") << " it at " << std::abs(vn) << " m/s along the contact normal";
+    const double vn = (v_mid - b.velocity - b.angular_velocity.cross(rel + a)).dot(bc.n);
+    s << "; the particle at (" << ps.x[i].transpose() << ") m, moving at " << v_mid.norm() << " m/s in this step, "
+      << (vn < 0.0 ? "closes on" : "parts from") << " it at " << std::abs(vn) << " m/s along the contact normal";
   }
   return s.str();
 }

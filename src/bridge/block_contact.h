@@ -110,7 +110,7 @@ class BlockContact final : public bonded::ForceSource {
   const char* name() const override { return "rigid block"; }
   /// "rigid block <id> (centre ... m, velocity ... m/s, ...); they close at ... m/s": the block of
   /// the deepest contact of the last add_forces() call, for the blow-up message.
-  std::string describe_worst(const bonded::ParticleStore& ps, std::uint32_t i) const override;
+  std::string describe_worst(const bonded::ParticleStore& ps, std::uint32_t i, const Vec3& v_mid) const override;
   /// MPI: the tangential springs of leaving particles travel with them (bonded::ForceSource).
   void pack_history(const std::unordered_map<GlobalId, int>& leaving, std::vector<par::Bytes>& out) override;
   void unpack_history(const char* data, std::size_t size) override;

@@ -10,13 +10,18 @@
 #pragma once
 
 #include "bridge/conversion_criteria.h"
+#include "common/error.h"
 
 #include <cmath>
+#include <string>
 
 namespace hs::bridge {
 
 inline double crushing_utilisation(const BlockLoads& b, const ConversionStrengths& s) {
-  if (!std::isfinite(s.contact_crushing_force)) return 0.0;
+  if (!(s.contact_crushing_force > 0.0))
+    throw InputError("contact_crushing_force", "must be positive (N; infinite = no crushing criterion), got " +
+                                                   std::to_string(s.contact_crushing_force));
+  if (std::isinf(s.contact_crushing_force)) return 0.0;
   return b.particle_contact_force / s.contact_crushing_force;
 }
 

@@ -386,6 +386,11 @@ TEST(BlockStress, CriteriaListMatchesTheEstimates) {
   EXPECT_EQ(criteria[kCrushingCriterion].utilisation(b, s), 0.0);
   s.contact_crushing_force = 300.0;
   EXPECT_EQ(criteria[kCrushingCriterion].utilisation(b, s), 3.0);
+  for (const double bad : {0.0, -300.0, std::nan("")}) {
+    ConversionStrengths w = s;
+    w.contact_crushing_force = bad;
+    EXPECT_THROW(criteria[kCrushingCriterion].utilisation(b, w), InputError) << bad;
+  }
   d = evaluate_criteria(b, s);
   EXPECT_EQ(d.governing, 3.0 > u_b ? static_cast<int>(kCrushingCriterion) : static_cast<int>(kFreezeBondCriterion));
   BlockLoads none;
