@@ -378,11 +378,13 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   ProgressLine bar(progress, s.time.duration, steps);
   int stop = 0;           // the signal that stopped the run, 0 if none
   std::uint64_t last = 0;  // the last step completed
+  std::uint64_t first = 0;  // the step this process started from (a restart's checkpoint step)
   const std::uint64_t ckpt_every = sim.schedule().checkpoint_every;
   try {
     LoopPoll poll(comm, signals, opt.flush_interval);
     if (restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
       last = apply_restart(*restart, sim, rec, file, progress);
+      first = last;
       bar.start_at(last);
       std::fprintf(progress, "hybridsim: restarted from %s at step %llu (t = %s s)\n",
                    restart->checkpoint_file.c_str(), static_cast<unsigned long long>(last),
@@ -429,7 +431,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   const sim::RunReport an = sim::analyse_run(sim, s, fig, comm);
   comm.barrier();  // every rank's close has completed before rank 0 reopens the file
   if (comm.rank() == 0) sim::write_analysis(out_path, an);
-  print_summary(out, s, sim, fig, an, RunEnd{start, wall, out_path}, comm);
+  print_summary(out, s, sim, fig, an, RunEnd{start, wall, out_path, first}, comm);
   if (signals.received())
     std::fprintf(progress, "hybridsim: %s received after the last step: the run was complete and its report is written\n",
                  signal_name(signals.received()));

@@ -173,9 +173,13 @@ void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulati
   const auto& e = sim.engine();
   const auto& st = e.stats();
   const double wall = std::max(end.wall_seconds, 1e-9);
-  out << "hybridsim: " << s.name << " finished: " << e.step_count() << " steps to t = " << sci(e.time(), 6)
-      << " s in " << sci(end.wall_seconds, 4) << " s wall (" << sci(e.step_count() / wall, 4) << " steps/s, "
-      << sci(static_cast<double>(end.start.particles) * e.step_count() / wall, 3) << " particle-steps/s)\n";
+  // The rates are this process's: after a restart, the steps since its checkpoint.
+  const std::uint64_t ran = e.step_count() - std::min<std::uint64_t>(end.first_step, e.step_count());
+  const double run = static_cast<double>(ran);
+  out << "hybridsim: " << s.name << " finished: " << e.step_count() << " steps to t = " << sci(e.time(), 6) << " s";
+  if (end.first_step > 0) out << "; restarted at step " << end.first_step << ", " << ran << " steps";
+  out << " in " << sci(end.wall_seconds, 4) << " s wall (" << sci(run / wall, 4) << " steps/s, "
+      << sci(static_cast<double>(end.start.particles) * run / wall, 3) << " particle-steps/s)\n";
   out << "  particles " << end.start.particles << " at the start, " << e.global_particle_count()
       << " at the end; bonds " << end.start.bonds << ", broken " << st.bonds_broken << " ("
       << st.bonds_broken_tension << " tension, " << st.bonds_broken_shear << " shear"

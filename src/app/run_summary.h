@@ -6,6 +6,7 @@
 #include "sim/report.h"
 #include "sim/simulation.h"
 
+#include <cstdint>
 #include <cstdio>
 #include <ostream>
 #include <string>
@@ -28,8 +29,9 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
 
 struct RunEnd {
   RunCounts start;
-  double wall_seconds = 0.0;
+  double wall_seconds = 0.0;  ///< of this process
   std::string output;
+  std::uint64_t first_step = 0;  ///< the step this process started from (> 0 after a restart)
 };
 
 /// The end-of-run summary on `out`. Collective (the MPI figures are reduced over the ranks).

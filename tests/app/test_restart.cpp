@@ -269,6 +269,11 @@ TEST(Restart, SigtermLeavesACheckpointThatRestartFinishes) {
   const auto b = hybridsim(resume.substr(std::string("hybridsim ").size()));
   ASSERT_EQ(b.rc, 0) << b.err;
   expect_same_series(work_dir() / "t_n.h5", work_dir() / "t.h5");
+  // Its summary's rates are of the steps it took, from the checkpoint on (they were of all steps
+  // over this process's wall time).
+  const auto total = static_cast<std::uint64_t>(straight.back());
+  const std::string ran = "; restarted at step " + std::to_string(k) + ", " + std::to_string(total - k) + " steps in ";
+  EXPECT_NE((b.out + b.err).find(ran), std::string::npos) << b.out << b.err;
 }
 
 // Bad --restart: a run without a checkpoint, a changed scene, a missing file: exit 2, the problem named.
