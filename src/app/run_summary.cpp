@@ -187,6 +187,9 @@ void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulati
               ? ", " + std::to_string(st.bonds_broken_compression) + " compression"
               : std::string())
       << ")\n";
+  out << "  largest contact overlap " << sci(f.max_overlap, 3) << " of the particle radius at t = "
+      << sci(f.max_overlap_time, 4) << " s (row maxima; limit stability.max_overlap_ratio = "
+      << s.stability.max_overlap_ratio << ")\n";
   for (std::size_t w = 0; w < s.walls.size(); ++w)
     out << "  peak force on wall '" << s.walls[w].name << "': " << sci(f.wall_peak[w], 4) << " N at t = "
         << sci(f.wall_peak_time[w], 4) << " s\n";

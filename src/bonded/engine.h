@@ -369,6 +369,9 @@ class Engine {
   /// Current world position of mesh wall k's frame origin.
   const Vec3& mesh_wall_position(int k) const { return meshes_[k].position; }
   const StepStats& stats() const { return stats_; }
+  /// Largest contact overlap / particle radius of the last force evaluation on this rank
+  /// (particle pairs, walls, meshes, force sources): what stability.max_overlap_ratio limits.
+  double worst_overlap_ratio() const { return worst_overlap_ratio_; }
   const EngineDef& def() const { return def_; }
   EngineDef& mutable_def() { return def_; }
 

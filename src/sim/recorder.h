@@ -36,6 +36,7 @@ struct RunFigures {
   double max_pile = 0.0, max_pile_time = 0.0;     ///< m, s
   bool has_pile_mean = false;                     ///< /series/pile_height_mean was recorded (pier)
   double max_pile_mean = 0.0, max_pile_mean_time = 0.0;  ///< m, s: its peak
+  double max_overlap = 0.0, max_overlap_time = 0.0;      ///< contact overlap / radius, s: its peak
   std::uint64_t rows = 0, snapshots = 0;         ///< written to the run file
 };
 

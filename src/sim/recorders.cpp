@@ -397,6 +397,46 @@ class EnergyRecorder : public Recorder {
   };
 };
 
+// ---- /series/max_overlap_ratio: how close the contacts come to the stability limit
+class OverlapRecorder : public Recorder {
+ public:
+  explicit OverlapRecorder(const par::Comm& comm) : comm_(comm) {}
+  void declare(io::RunFile& f) override {
+    id_ = f.add_series("/series/max_overlap_ratio", 1, "1",
+                       "largest contact overlap / particle radius over the steps since the previous row "
+                       "(particle pairs, walls, structure, blocks): the figure stability.max_overlap_ratio limits");
+  }
+  void after_step(const Simulation& sim) override {
+    row_ = std::max(row_, sim.engine().worst_overlap_ratio());
+  }
+  void write(Simulation& sim, io::RunFile& f) override {
+    // Row 0 (no step yet): the initial forces' overlap.
+    const double v = comm_.max(std::max(row_, sim.engine().worst_overlap_ratio()));
+    f.append(id_, &v);
+    max_.update(v, sim.engine().time());
+    row_ = 0.0;
+  }
+  void figures(RunFigures& fig) const override {
+    fig.max_overlap = max_.value;
+    fig.max_overlap_time = max_.time;
+  }
+  // A checkpoint from before this series has neither: the run's peak then starts at the restart.
+  void save(StateArchive& a, const std::string& p) const override {
+    max_.save(a, p + "max");
+    a.put(p + "row", std::vector<double>{row_});
+  }
+  void load(const StateArchive& a, const std::string& p) override {
+    if (a.has(p + "max")) max_.load(a, p + "max");
+    if (a.has(p + "row")) row_ = a.get<double>(p + "row").at(0);
+  }
+
+ private:
+  const par::Comm& comm_;
+  int id_ = -1;
+  double row_ = 0.0;  ///< this rank's largest since the previous row
+  RunningMax max_;
+};
+
 // ---- /series/bonds_broken, /series/bonds, /series/particles
 class CountsRecorder : public Recorder {
  public:
@@ -499,6 +539,8 @@ std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, con
   r.push_back(std::make_unique<EnergyRecorder>());
   r.push_back(std::make_unique<CountsRecorder>());
   if (sim.schedule().snapshot_every) r.push_back(std::make_unique<SnapshotRecorder>(comm));  // last: after the row
+  // After the snapshots: a checkpoint keys recorders by position, so the older ones keep theirs.
+  r.push_back(std::make_unique<OverlapRecorder>(comm));
   return r;
 }
 

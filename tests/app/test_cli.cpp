@@ -269,6 +269,19 @@ TEST(CliStructure, TinyPierRunWritesLoadsPileIsoAndPieces) {
   }
   EXPECT_GT(mmax, 0.0);
 
+  // The contacts' deepest overlap per row: there are contacts (ice on ice, ice on the pier), and
+  // the run did not stop, so every row is below the limit (0.5); the summary gives its peak.
+  const auto ov = read_doubles(h5, "/series/max_overlap_ratio");
+  ASSERT_EQ(ov.size(), pile.size());
+  double omax = 0;
+  for (double o : ov) {
+    EXPECT_GE(o, 0.0);
+    EXPECT_LE(o, 0.5);
+    omax = std::max(omax, o);
+  }
+  EXPECT_GT(omax, 0.0);
+  EXPECT_NE(r.out.find("largest contact overlap"), std::string::npos) << r.out;
+
   // ISO next to the DEM: same inputs as the scene, rubble height = the peak mean pile height;
   // the highest particle's peak is kept beside it.
   const double FH = read_attr(h5, "/analysis/iso", "F_H");
