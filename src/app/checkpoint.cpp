@@ -10,6 +10,7 @@
 #include <cstdio>
 #include <cstring>
 #include <filesystem>
+#include <limits>
 #include <regex>
 
 namespace hs::app {
@@ -182,6 +183,16 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
     const io::SeriesRows* src = nullptr;
     for (const auto& s : r.series)
       if (s.path == path) src = &s;
+    if (!src && path == "/series/max_overlap_ratio" && !file.series_is_integer(id)) {
+      // A series this binary writes and the run file's binary did not (it came later): its rows
+      // up to the checkpoint are unknown, NaN, so the file keeps one row count for every series.
+      std::fprintf(progress, "hybridsim: the run file '%s' has no %s (an older hybridsim wrote it): its rows up to "
+                             "the checkpoint are NaN\n", r.run_file.c_str(), path.c_str());
+      const std::vector<double> nan(static_cast<std::size_t>(file.series_width(id)),
+                                    std::numeric_limits<double>::quiet_NaN());
+      for (std::uint64_t row = 0; row < r.meta.series_rows; ++row) file.append(id, nan.data());
+      continue;
+    }
     if (!src || src->width != file.series_width(id) || src->integer != file.series_is_integer(id))
       throw InputError("--restart", "the run file '" + r.run_file + "' has no series " + path +
                                         " of the kind this run writes (is it the run file of this checkpoint?)");

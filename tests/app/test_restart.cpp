@@ -395,6 +395,46 @@ std::pair<double, double> series_difference(const fs::path& a, const fs::path& b
   return {d, m};
 }
 
+// A run file from before /series/max_overlap_ratio existed restarts: its rows up to the checkpoint
+// are NaN (named on the terminal), the later ones are the run's, and every other series is the
+// straight run's. Without the fill the restart was refused ("has no series").
+TEST(Restart, ARunFileWithoutTheOverlapSeriesRestartsWithNaNRows) {
+  make_scene();
+  const std::string l = " --set time.checkpoint_interval=0.33";
+  const auto a = hybridsim("run ridge_run.json -o ov_a.h5" + l);
+  ASSERT_EQ(a.rc, 0) << a.err;
+  const std::uint64_t k = checkpoint_step(work_dir() / "ov_a.ckpt.h5");
+  ASSERT_GT(k, 0u);
+  fs::copy_file(work_dir() / "ov_a.h5", work_dir() / "ov_old.h5", fs::copy_options::overwrite_existing);
+  fs::copy_file(work_dir() / "ov_a.ckpt.h5", work_dir() / "ov_old.ckpt.h5", fs::copy_options::overwrite_existing);
+  {  // what an older binary wrote: no such series
+    const hid_t f = H5Fopen((work_dir() / "ov_old.h5").c_str(), H5F_ACC_RDWR, H5P_DEFAULT);
+    ASSERT_GE(f, 0);
+    ASSERT_GE(H5Ldelete(f, "/series/max_overlap_ratio", H5P_DEFAULT), 0);
+    H5Fclose(f);
+  }
+  const auto b = hybridsim("run ridge_run.json --restart ov_old.h5 -o ov_b.h5" + l);
+  ASSERT_EQ(b.rc, 0) << b.err;
+  EXPECT_NE(b.err.find("has no /series/max_overlap_ratio"), std::string::npos) << b.err;
+  const auto step = read_doubles(work_dir() / "ov_a.h5", "/series/step");
+  const auto x = read_doubles(work_dir() / "ov_a.h5", "/series/max_overlap_ratio");
+  const auto y = read_doubles(work_dir() / "ov_b.h5", "/series/max_overlap_ratio");
+  ASSERT_EQ(x.size(), step.size());
+  ASSERT_EQ(y.size(), x.size());
+  std::size_t nan_rows = 0;
+  for (std::size_t i = 0; i < x.size(); ++i) {
+    if (step[i] <= static_cast<double>(k)) {
+      EXPECT_TRUE(std::isnan(y[i])) << "row " << i;
+      ++nan_rows;
+    } else {
+      EXPECT_EQ(y[i], x[i]) << "row " << i;
+    }
+  }
+  EXPECT_GT(nan_rows, 0u);
+  EXPECT_LT(nan_rows, x.size());
+  EXPECT_EQ(read_doubles(work_dir() / "ov_a.h5", "/series/force"), read_doubles(work_dir() / "ov_b.h5", "/series/force"));
+}
+
 // Another rank count: a 2-rank checkpoint continued at 1 rank, and a 1-rank one at 2 ranks, stay
 // within round-off of the straight run (the union of the saved ranks redistributed; forces of the
 // last step carried with their particles; the neighbour lists rebuilt at the positions of the last
