@@ -149,6 +149,17 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
   return r;
 }
 
+namespace {
+/// Float series added to the run file after checkpoints existed: a run file without one still
+/// restarts (its rows up to the checkpoint NaN). Any other missing series is refused.
+bool added_later(const std::string& path) {
+  static const char* const kAddedLater[] = {"/series/max_overlap_ratio"};  // stop 37
+  for (const char* p : kAddedLater)
+    if (path == p) return true;
+  return false;
+}
+}  // namespace
+
 std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& rec, io::RunFile& file,
                             std::FILE* progress) {
   try {
@@ -183,9 +194,9 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
     const io::SeriesRows* src = nullptr;
     for (const auto& s : r.series)
       if (s.path == path) src = &s;
-    if (!src && path == "/series/max_overlap_ratio" && !file.series_is_integer(id)) {
-      // A series this binary writes and the run file's binary did not (it came later): its rows
-      // up to the checkpoint are unknown, NaN, so the file keeps one row count for every series.
+    if (!src && added_later(path) && !file.series_is_integer(id)) {
+      // A series this binary writes and the run file's binary did not: its rows up to the
+      // checkpoint are unknown, NaN, so the file keeps one row count for every series.
       std::fprintf(progress, "hybridsim: the run file '%s' has no %s (an older hybridsim wrote it): its rows up to "
                              "the checkpoint are NaN\n", r.run_file.c_str(), path.c_str());
       const std::vector<double> nan(static_cast<std::size_t>(file.series_width(id)),
