@@ -67,6 +67,30 @@ inline void sorted_manifolds(btDispatcher* d, std::vector<btPersistentManifold*>
 /// order.
 class PooledSolver final : public btSequentialImpulseConstraintSolver {
  public:
+  /// RigidWorldDef::friction_sees_torque: correct every friction row for the external torque.
+  bool friction_sees_torque = false;
+
+  /// Bullet 3.x's setupFrictionConstraint takes the velocity an external force gives a body in
+  /// this step (m_externalForceImpulse) but not the one an external torque gives it
+  /// (m_externalTorqueImpulse), while setupContactConstraint takes both. A block resting on a face
+  /// under an off-centre load then slides: the normal rows stop the torque's rotation, the friction
+  /// rows, blind to it, cancel the tangential motion it would have caused, and what is left is the
+  /// block translating at torque x dt x lever / I (docs/rigid.md, "External torques and
+  /// friction"). Here each friction row's target is corrected by the torque's velocity along it,
+  /// as the normal rows have it.
+  void convertContacts(btPersistentManifold** manifolds, int n, const btContactSolverInfo& info) override {
+    btSequentialImpulseConstraintSolver::convertContacts(manifolds, n, info);
+    if (!friction_sees_torque) return;
+    for (int i = 0; i < m_tmpSolverContactFrictionConstraintPool.size(); ++i) {
+      btSolverConstraint& c = m_tmpSolverContactFrictionConstraintPool[i];
+      const btSolverBody& a = m_tmpSolverBodyPool[c.m_solverBodyIdA];
+      const btSolverBody& b = m_tmpSolverBodyPool[c.m_solverBodyIdB];
+      const btScalar v = (a.m_originalBody ? c.m_relpos1CrossNormal.dot(a.m_externalTorqueImpulse) : btScalar(0)) +
+                         (b.m_originalBody ? c.m_relpos2CrossNormal.dot(b.m_externalTorqueImpulse) : btScalar(0));
+      c.m_rhs -= v * c.m_jacDiagABInv;
+    }
+  }
+
   btScalar solveGroupCacheFriendlyFinish(btCollisionObject** bodies, int numBodies,
                                          const btContactSolverInfo& info) override {
     // The pools still hold this step's sizes here (the base class empties them).

@@ -539,6 +539,7 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   m.dispatcher = std::make_unique<btCollisionDispatcher>(m.config.get());
   m.broadphase = std::make_unique<btDbvtBroadphase>();
   m.solver = std::make_unique<detail::PooledSolver>();
+  m.solver->friction_sees_torque = def.friction_sees_torque;
   m.world = std::make_unique<detail::CanonicalWorld>(m.dispatcher.get(), m.broadphase.get(), m.solver.get(),
                                                      m.config.get());
   m.world->setGravity(to_bt(def.gravity));

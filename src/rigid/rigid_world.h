@@ -78,6 +78,15 @@ struct RigidWorldDef {
   /// | SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION). With false, static friction in a
   /// stack lets blocks creep at a few cm/s (docs/ridge.md); ~1/3 more solver rows.
   bool fixed_friction_directions = false;
+  /// Friction rows that see external torques. Bullet 3.x's friction rows take the velocity an
+  /// external force (applyCentralForce: the water load, add_force) gives a body in the step but not
+  /// the one an external torque gives it, while the normal rows take both: a block in frictional
+  /// contact under an off-centre load then slides at torque x dt x lever / I every step where no
+  /// friction is needed at all. true: each friction row's target is corrected by the torque's
+  /// velocity (PooledSolver::convertContacts); false (for now the default, so that results stay as
+  /// they were until the ridge set-up has been checked with it): Bullet's rows as they are
+  /// (docs/rigid.md, "External torques and friction").
+  bool friction_sees_torque = false;
   /// Error reduction (Baumgarte) of contacts and of joints, the fraction of a penetration or
   /// joint drift removed per step by a velocity correction; <= 0 keeps Bullet's 0.2. That
   /// correction velocity is erp x error / dt: at a small dt (the hybrid's rigid step, ~1e-3 s)

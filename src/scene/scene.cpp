@@ -46,7 +46,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/parallel", {"grid", "balance_interval", "cost"}},
       {"/blocks",
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "loose_blocks", "list", "density", "friction", "linear_drag",
-        "drag_coefficient", "solver_iterations", "fixed_friction_directions", "rigid_dt", "conversion", "region",
+        "drag_coefficient", "solver_iterations", "fixed_friction_directions", "friction_sees_torque", "rigid_dt", "conversion", "region",
         "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep", "lattice"}},
       {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time", "lattice_damping",
                          "hold_freeze_bonds"}},
@@ -538,6 +538,7 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
   b.solver_iterations = o.integer<int>("solver_iterations", b.solver_iterations, {1.0, 1000.0}, "",
                                        "Bullet sequential-impulse iterations, e.g. 20");
   b.fixed_friction_directions = o.boolean("fixed_friction_directions", b.fixed_friction_directions);
+  b.friction_sees_torque = o.boolean("friction_sees_torque", b.friction_sees_torque);
   b.rigid_dt = o.number("rigid_dt", b.rigid_dt, Range::non_negative(), "s",
                         "rigid step; 0 = the largest the stability rule allows (docs/bridge.md)");
   b.conversion = o.choice("conversion", b.conversion, {"hybrid", "all_at_start", "never"});

@@ -192,6 +192,8 @@ struct BlocksDef {
   /// Bullet's one direction along the sliding velocity, under which resting blocks in a deep
   /// pile creep at cm/s (docs/ridge.md, "Fixed friction directions").
   bool fixed_friction_directions = true;
+  /// Friction rows that see external torques (RigidWorldDef::friction_sees_torque).
+  bool friction_sees_torque = false;
   double rigid_dt = 0.0;             ///< s; 0 = the largest step the stability rule allows
   std::string conversion = "hybrid"; ///< "hybrid", "all_at_start" or "never"
   /// Where all_at_start's blocks' sites come from (bridge::IceMaterial::world_lattice): "block",

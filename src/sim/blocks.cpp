@@ -38,6 +38,7 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   w.friction = d.block_friction;
   w.solver_iterations = b.solver_iterations;
   w.fixed_friction_directions = b.fixed_friction_directions;
+  w.friction_sees_torque = b.friction_sees_torque;
   const CalibratedIce ci = calibrate_ice(s);  // freeze strengths may be a fraction of the lattice bond's
   w.freeze_bond_strength = ci.freeze_tensile_strength;
   w.freeze_bond_shear_strength = ci.freeze_shear_strength;
