@@ -3,6 +3,7 @@
 #include "bonded/hcp_lattice.h"
 #include "common/error.h"
 #include "scene/scene.h"
+#include "sim/blocks.h"
 #include "sim/build.h"
 #include "sim/calibrated_ice.h"
 
@@ -431,6 +432,14 @@ TEST(SceneBlocks, DefaultsAndErrors) {
   EXPECT_FALSE(scene::parse_scene(k).blocks.fixed_friction_directions);
   k["blocks"] = json::parse(R"({"list": [{}], "fixed_friction_directions": 1})");
   expect_error([&] { scene::parse_scene(k); }, "/blocks/fixed_friction_directions", "");
+  // Friction rows that see external torques (docs/rigid.md): off by default, on on request.
+  k["blocks"] = json::parse(R"({"list": [{}]})");
+  EXPECT_FALSE(scene::parse_scene(k).blocks.friction_sees_torque);
+  k["blocks"] = json::parse(R"({"list": [{}], "friction_sees_torque": true})");
+  EXPECT_TRUE(scene::parse_scene(k).blocks.friction_sees_torque);
+  EXPECT_TRUE(sim::block_setup(scene::parse_scene(k), nullptr, 0.0).def.world.friction_sees_torque);  // reaches the world
+  k["blocks"] = json::parse(R"({"list": [{}], "friction_sees_torque": "yes"})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/friction_sees_torque", "");
   expect_bad("/parallel/balance_interval", 500.5, "/parallel/balance_interval", "whole number");
   expect_bad("/parallel/balance_interval", -1, "/parallel/balance_interval", "must be >= 0");
 }
