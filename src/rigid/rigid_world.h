@@ -78,13 +78,9 @@ struct RigidWorldDef {
   /// | SOLVER_DISABLE_VELOCITY_DEPENDENT_FRICTION_DIRECTION). With false, static friction in a
   /// stack lets blocks creep at a few cm/s (docs/ridge.md); ~1/3 more solver rows.
   bool fixed_friction_directions = false;
-  /// Friction rows that see external torques. Bullet 3.x's friction rows take the velocity an
-  /// external force (applyCentralForce: the water load, add_force) gives a body in the step but not
-  /// the one an external torque gives it, while the normal rows take both: a block in frictional
-  /// contact under an off-centre load then slides at torque x dt x lever / I every step where no
-  /// friction is needed at all. true: each friction row's target is corrected by the torque's
-  /// velocity (PooledSolver::convertContacts); false (for now the default, so that results stay as
-  /// they were until the ridge set-up has been checked with it): Bullet's rows as they are
+  /// Friction rows that see the external torques (the water's, add_force's): true corrects
+  /// Bullet's friction rows, which ignore them (PooledSolver::convertContacts says why); false,
+  /// for now the default until the ridge set-up has been checked with it, keeps Bullet's rows
   /// (docs/rigid.md, "External torques and friction").
   bool friction_sees_torque = false;
   /// Error reduction (Baumgarte) of contacts and of joints, the fraction of a penetration or
