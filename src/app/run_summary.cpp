@@ -75,7 +75,7 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
 
 namespace {
 
-void print_blocks(std::ostream& out, const sim::Simulation& sim) {
+void print_blocks(std::ostream& out, const sim::Simulation& sim, const sim::RunReport& an) {
   const auto& h = sim.hybrid();
   const auto& r = h.report();
   out << "  blocks (" << bridge::to_string(sim.blocks().def.mode) << "): " << r.blocks_initial << " at the start, "
@@ -96,6 +96,10 @@ void print_blocks(std::ostream& out, const sim::Simulation& sim) {
     out << "  relaxation before the freeze: " << sci(x.time, 4) << " s, " << (x.at_rest() ? "at rest" : "NOT at rest")
         << " (fastest block " << sci(x.max_block_speed, 3) << " m/s, particle " << sci(x.max_particle_speed, 3)
         << " m/s at its end; sheet mean dz " << sci(x.sheet_mean_dz, 3) << " m)\n";
+  if (an.rest_window > 0)
+    out << "  at the end: fastest block " << sci(an.final_mean_block_speed, 3) << " m/s mean over the last "
+        << sci(an.rest_window, 3) << " s (" << sci(an.final_max_block_speed, 3) << " m/s at the last step), particle "
+        << sci(an.final_max_particle_speed, 3) << " m/s\n";
   out << "  time: bonded " << sci(r.seconds_bonded, 4) << " s, rigid " << sci(r.seconds_rigid, 4)
       << " s, bridge " << sci(r.seconds_bridge, 4) << " s\n";
 }
@@ -205,7 +209,7 @@ void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulati
           << sci(f.max_pile_mean_time, 4) << " s";
     out << "\n";
   }
-  if (sim.has_blocks()) print_blocks(out, sim);
+  if (sim.has_blocks()) print_blocks(out, sim, an);
   print_pieces_and_iso(out, an, f);
   out << mpi.str();
   out << "  output: " << end.output << " (" << f.rows << " series rows, " << f.snapshots << " snapshots)\n";

@@ -9,6 +9,7 @@
 #include "parallel/comm.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <iterator>
 #include <stdexcept>
@@ -305,6 +306,75 @@ class PileMeanRecorder : public Recorder {
   RunningMax max_;
 };
 
+// ---- the blocks' mean speed over the run's last kRestWindow seconds (the at-rest check)
+/// Every block's mean speed over the run's last kRestWindow seconds: (|centre displacement| +
+/// rotation angle x half diagonal) / time, between its pose when the window opens and its pose at
+/// the last step (docs/bridge.md, "Relaxation"). The instantaneous speed of a block at rest can
+/// read a few cm/s for one rigid step when Bullet swaps a load-carrying point of a full contact
+/// manifold (docs/rigid.md, "Manifold chatter": a 4e-5 rad turn that stops the next step); over
+/// the window such a step counts as what it is, a displacement of a few hundredths of a mm,
+/// while a block that moves at v for the window still reads v. Blocks converted in the window
+/// are left out. A restart inside the window with a checkpoint from before this figure existed
+/// opens it at the restart (the window is then shorter; its length is reported).
+class RestWindow {
+ public:
+  void after_step(const Simulation& sim) {
+    const auto& sc = sim.schedule();
+    const std::uint64_t w = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::ceil(kRestWindow / sc.dt - 1e-9)));
+    if (open_ || sim.engine().step_count() + w < sc.total_steps) return;
+    const rigid::RigidWorld& world = *sim.hybrid().world();
+    open_ = true;
+    t0_ = world.time();
+    poses_.clear();
+    for (const rigid::BlockId id : world.blocks()) {
+      if (world.fixed(id)) continue;
+      const Vec3 x = world.position(id);
+      const Quat q = world.orientation(id);
+      poses_.push_back({static_cast<double>(id.index), static_cast<double>(id.generation), x.x(), x.y(), x.z(), q.w(),
+                        q.x(), q.y(), q.z()});
+    }
+  }
+  /// At the last step: the figure (RunFigures::rest_window, final_mean_block_speed).
+  void finish(const Simulation& sim) {
+    const rigid::RigidWorld& world = *sim.hybrid().world();
+    window_ = open_ ? world.time() - t0_ : 0.0;
+    speed_ = 0.0;
+    if (!(window_ > 0)) return;
+    for (const auto& p : poses_) {
+      const rigid::BlockId id{static_cast<std::uint32_t>(p[0]), static_cast<std::uint32_t>(p[1])};
+      if (!world.alive(id)) continue;
+      const double moved = (world.position(id) - Vec3(p[2], p[3], p[4])).norm() +
+                           world.orientation(id).angularDistance(Quat(p[5], p[6], p[7], p[8])) *
+                               world.half_extents(id).norm();
+      speed_ = std::max(speed_, moved / window_);
+    }
+  }
+  void figures(RunFigures& f) const {
+    f.rest_window = window_;
+    f.final_mean_block_speed = speed_;
+  }
+  void save(StateArchive& a, const std::string& p) const {
+    a.put_value(p + "rest_open", static_cast<std::uint64_t>(open_));
+    a.put(p + "rest_t0", std::vector<double>{t0_});
+    std::vector<double> flat;
+    for (const auto& x : poses_) flat.insert(flat.end(), x.begin(), x.end());
+    a.put(p + "rest_poses", flat);
+  }
+  void load(const StateArchive& a, const std::string& p) {
+    if (!a.has(p + "rest_open")) return;  // a checkpoint from before this figure: opens after the restart
+    open_ = a.get_value<std::uint64_t>(p + "rest_open") != 0;
+    t0_ = a.get<double>(p + "rest_t0").at(0);
+    const auto flat = a.get<double>(p + "rest_poses");
+    poses_.assign(flat.size() / 9, {});
+    for (std::size_t k = 0; k < poses_.size(); ++k) std::copy_n(flat.begin() + 9 * k, 9, poses_[k].begin());
+  }
+
+ private:
+  bool open_ = false;
+  double t0_ = 0.0, window_ = 0.0, speed_ = 0.0;
+  std::vector<std::array<double, 9>> poses_;  ///< index, generation, position, orientation (w x y z)
+};
+
 // ---- /series/blocks/...: the rigid blocks
 class BlocksRecorder : public Recorder {
  public:
@@ -325,6 +395,7 @@ class BlocksRecorder : public Recorder {
   void after_step(const Simulation& sim) override {
     if (has_structure_) force_.sum += sim.hybrid().structure_force();
     ++n_;
+    rest_.after_step(sim);
   }
   void write(Simulation& sim, io::RunFile& f) override {
     const auto& h = sim.hybrid();
@@ -343,18 +414,23 @@ class BlocksRecorder : public Recorder {
     f.append(id_joints_, &nj);
     f.append(id_awake_, &nawake);
     n_ = 0;
+    if (sim.engine().step_count() == sim.schedule().total_steps) rest_.finish(sim);
   }
+  void figures(RunFigures& fig) const override { rest_.figures(fig); }
   void save(StateArchive& a, const std::string& p) const override {
     a.put_value(p + "force", force_);
     a.put_value(p + "n", n_);
+    rest_.save(a, p);
   }
   void load(const StateArchive& a, const std::string& p) override {
     force_ = a.get_value<Mean3>(p + "force");
     n_ = a.get_value<std::uint64_t>(p + "n");
+    rest_.load(a, p);
   }
 
  private:
   bool has_structure_;
+  RestWindow rest_;
   Mean3 force_;
   std::uint64_t n_ = 0;
   int id_force_ = -1, id_ke_ = -1, id_count_ = -1, id_conv_ = -1, id_joints_ = -1, id_awake_ = -1;

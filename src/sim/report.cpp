@@ -52,6 +52,8 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
   an.block_bonds_broken = hyb.block_particle_bonds_broken();
   an.conversion = bridge::to_string(sim.blocks().def.mode);
   an.relax = hyb.relax_report();
+  an.rest_window = f.rest_window;
+  an.final_mean_block_speed = f.final_mean_block_speed;
   if (const rigid::RigidWorld* w = hyb.world())
     for (const rigid::BlockId id : w->blocks())
       if (!w->fixed(id))
@@ -153,10 +155,15 @@ void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
       {"freeze_bonds_broken", static_cast<double>(a.block_bonds_broken)},
       {"final_max_block_speed", a.final_max_block_speed},
       {"final_max_particle_speed", a.final_max_particle_speed},
+      {"final_mean_block_speed", a.final_mean_block_speed},
+      {"rest_window", a.rest_window},
   };
   for (const auto& [name, value] : figures) f.set_attribute(g, name, value);
   f.set_attribute(g, "description", std::string("rigid/particle hybrid: conversions, particles created, peak particle "
-                                                "count, wall time per part (s, rank 0), rigid step (s)"));
+                                                "count, wall time per part (s, rank 0), rigid step (s); at the end "
+                                                "(the at-rest check): final_max_block_speed (centre speed + |omega| x "
+                                                "half diagonal, m/s), final_mean_block_speed (the largest mean speed "
+                                                "over the last rest_window s, m/s), final_max_particle_speed (m/s)"));
 }
 
 /// /analysis/relaxation: what the relaxation before the freeze did (docs/bridge.md, "Relaxation").
