@@ -99,7 +99,8 @@ void print_blocks(std::ostream& out, const sim::Simulation& sim, const sim::RunR
   if (an.rest_window > 0)
     out << "  at the end: fastest block " << sci(an.final_mean_block_speed, 3) << " m/s mean over the last "
         << sci(an.rest_window, 3) << " s (" << sci(an.final_max_block_speed, 3) << " m/s at the last step), particle "
-        << sci(an.final_max_particle_speed, 3) << " m/s\n";
+        << sci(an.final_mean_particle_speed, 3) << " m/s (" << sci(an.final_max_particle_speed, 3)
+        << " m/s at the last step)\n";
   out << "  time: bonded " << sci(r.seconds_bonded, 4) << " s, rigid " << sci(r.seconds_rigid, 4)
       << " s, bridge " << sci(r.seconds_bridge, 4) << " s\n";
 }

@@ -38,9 +38,10 @@ struct RunFigures {
   double max_pile_mean = 0.0, max_pile_mean_time = 0.0;  ///< m, s: its peak
   double max_overlap = 0.0, max_overlap_time = 0.0;      ///< contact overlap / radius, s: its peak
   std::uint64_t rows = 0, snapshots = 0;         ///< written to the run file
-  /// The blocks' at-rest figure (recorders.cpp, RestWindow): the largest mean speed of a block over
-  /// the run's last rest_window s (m/s); rest_window 0: no blocks, or the run did not reach its end.
-  double rest_window = 0.0, final_mean_block_speed = 0.0;
+  /// The at-rest figures of a run with blocks (recorders.cpp, RestWindow): the largest mean speed of
+  /// a block, and of a particle, over the run's last rest_window s (m/s); rest_window 0: no blocks,
+  /// or the run did not reach its end.
+  double rest_window = 0.0, final_mean_block_speed = 0.0, final_mean_particle_speed = 0.0;
 };
 
 /// s: the window over which the at-rest check takes each block's mean speed (RestWindow):

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstring>
 #include <iterator>
 #include <stdexcept>
 #include <string>
@@ -309,15 +310,19 @@ class PileMeanRecorder : public Recorder {
 // ---- the blocks' mean speed over the run's last kRestWindow seconds (the at-rest check)
 /// Every block's mean speed over the run's last kRestWindow seconds: (|centre displacement| +
 /// rotation angle x half diagonal) / time, between its pose when the window opens and its pose at
-/// the last step (docs/bridge.md, "Relaxation"). The instantaneous speed of a block at rest can
-/// read a few cm/s for one rigid step when Bullet swaps a load-carrying point of a full contact
-/// manifold (docs/rigid.md, "Manifold chatter": a 4e-5 rad turn that stops the next step); over
-/// the window such a step counts as what it is, a displacement of a few hundredths of a mm,
-/// while a block that moves at v for the window still reads v. Blocks converted in the window
-/// are left out. A restart inside the window with a checkpoint from before this figure existed
-/// opens it at the restart (the window is then shorter; its length is reported).
+/// the last step (docs/bridge.md, "Relaxation"); and every particle's, |displacement| / time. The
+/// instantaneous speed of a block at rest can read a few cm/s for one rigid step when Bullet
+/// swaps a load-carrying point of a full contact manifold (docs/rigid.md, "Manifold chatter": a
+/// 4e-5 rad turn that stops the next step), and the particles bonded to it follow; over the
+/// window such a step counts as what it is, a displacement of a few hundredths of a mm, while a
+/// block or particle that moves at v for the window still reads v. Blocks converted and
+/// particles made in the window are left out. Every rank keeps the whole sheet's start positions
+/// (gathered once), so the figure and a checkpoint's copy of them do not depend on the ranks. A
+/// restart inside the window with a checkpoint from before this figure existed opens it at the
+/// restart (the window is then shorter; its length is reported).
 class RestWindow {
  public:
+  explicit RestWindow(const par::Comm& comm) : comm_(comm) {}
   void after_step(const Simulation& sim) {
     const auto& sc = sim.schedule();
     const std::uint64_t w = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::ceil(kRestWindow / sc.dt - 1e-9)));
@@ -325,6 +330,8 @@ class RestWindow {
     const rigid::RigidWorld& world = *sim.hybrid().world();
     open_ = true;
     t0_ = world.time();
+    te0_ = sim.engine().time();
+    open_particles(sim.engine());
     poses_.clear();
     for (const rigid::BlockId id : world.blocks()) {
       if (world.fixed(id)) continue;
@@ -334,12 +341,24 @@ class RestWindow {
                         q.x(), q.y(), q.z()});
     }
   }
-  /// At the last step: the figure (RunFigures::rest_window, final_mean_block_speed).
+  /// At the last step (collective): the figures (RunFigures::rest_window, final_mean_block_speed,
+  /// final_mean_particle_speed).
   void finish(const Simulation& sim) {
     const rigid::RigidWorld& world = *sim.hybrid().world();
     window_ = open_ ? world.time() - t0_ : 0.0;
-    speed_ = 0.0;
+    speed_ = particle_speed_ = 0.0;
     if (!(window_ > 0)) return;
+    const auto& ps = sim.engine().particles();
+    const double te = sim.engine().time() - te0_;
+    double vp = 0.0;
+    for (std::size_t i = 0; i < ps.owned() && te > 0; ++i) {
+      const double g = static_cast<double>(ps.gid[i]);
+      const auto it = std::lower_bound(gids_.begin(), gids_.end(), g);
+      if (it == gids_.end() || *it != g) continue;  // made in the window
+      const std::size_t k = static_cast<std::size_t>(it - gids_.begin());
+      vp = std::max(vp, (ps.x[i] - Vec3(x0_[3 * k], x0_[3 * k + 1], x0_[3 * k + 2])).norm() / te);
+    }
+    particle_speed_ = comm_.max(vp);
     for (const auto& p : poses_) {
       const rigid::BlockId id{static_cast<std::uint32_t>(p[0]), static_cast<std::uint32_t>(p[1])};
       if (!world.alive(id)) continue;
@@ -352,6 +371,7 @@ class RestWindow {
   void figures(RunFigures& f) const {
     f.rest_window = window_;
     f.final_mean_block_speed = speed_;
+    f.final_mean_particle_speed = particle_speed_;
   }
   void save(StateArchive& a, const std::string& p) const {
     a.put_value(p + "rest_open", static_cast<std::uint64_t>(open_));
@@ -359,6 +379,9 @@ class RestWindow {
     std::vector<double> flat;
     for (const auto& x : poses_) flat.insert(flat.end(), x.begin(), x.end());
     a.put(p + "rest_poses", flat);
+    a.put(p + "rest_te0", std::vector<double>{te0_});
+    a.put(p + "rest_gids", gids_);
+    a.put(p + "rest_x0", x0_);
   }
   void load(const StateArchive& a, const std::string& p) {
     if (!a.has(p + "rest_open")) return;  // a checkpoint from before this figure: opens after the restart
@@ -367,18 +390,44 @@ class RestWindow {
     const auto flat = a.get<double>(p + "rest_poses");
     poses_.assign(flat.size() / 9, {});
     for (std::size_t k = 0; k < poses_.size(); ++k) std::copy_n(flat.begin() + 9 * k, 9, poses_[k].begin());
+    te0_ = a.get<double>(p + "rest_te0").at(0);
+    gids_ = a.get<double>(p + "rest_gids");
+    x0_ = a.get<double>(p + "rest_x0");
   }
 
  private:
+  /// Every particle's global id and position, gathered from all ranks onto every rank, in id order.
+  void open_particles(const bonded::Engine& e) {
+    const auto& ps = e.particles();
+    par::Bytes mine(ps.owned() * 4 * sizeof(double));
+    for (std::size_t i = 0; i < ps.owned(); ++i) {
+      const double r[4] = {static_cast<double>(ps.gid[i]), ps.x[i].x(), ps.x[i].y(), ps.x[i].z()};
+      std::memcpy(mine.data() + i * sizeof(r), r, sizeof(r));
+    }
+    const par::Bytes all0 = comm_.gather(mine);
+    const std::string all = comm_.broadcast(comm_.rank() == 0 ? std::string(all0.begin(), all0.end()) : std::string());
+    std::vector<std::array<double, 4>> rec(all.size() / (4 * sizeof(double)));
+    if (!rec.empty()) std::memcpy(static_cast<void*>(rec.data()), all.data(), rec.size() * 4 * sizeof(double));
+    std::sort(rec.begin(), rec.end(), [](const auto& a, const auto& b) { return a[0] < b[0]; });
+    gids_.resize(rec.size());
+    x0_.resize(3 * rec.size());
+    for (std::size_t k = 0; k < rec.size(); ++k) {
+      gids_[k] = rec[k][0];
+      std::copy_n(rec[k].begin() + 1, 3, x0_.begin() + 3 * k);
+    }
+  }
+
+  const par::Comm& comm_;
   bool open_ = false;
-  double t0_ = 0.0, window_ = 0.0, speed_ = 0.0;
+  double t0_ = 0.0, te0_ = 0.0, window_ = 0.0, speed_ = 0.0, particle_speed_ = 0.0;
   std::vector<std::array<double, 9>> poses_;  ///< index, generation, position, orientation (w x y z)
+  std::vector<double> gids_, x0_;             ///< particles when the window opened: ids (sorted), positions
 };
 
 // ---- /series/blocks/...: the rigid blocks
 class BlocksRecorder : public Recorder {
  public:
-  explicit BlocksRecorder(bool has_structure) : has_structure_(has_structure) {}
+  BlocksRecorder(bool has_structure, const par::Comm& comm) : has_structure_(has_structure), rest_(comm) {}
   void declare(io::RunFile& f) override {
     if (has_structure_)
       id_force_ = f.add_series("/series/blocks/structure_force", 3, "N",
@@ -611,7 +660,7 @@ std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, con
   r.push_back(std::make_unique<WallsRecorder>(s.walls, /*total_is_force=*/!st));
   if (st) r.push_back(std::make_unique<PileHeightRecorder>(pile_probe(sim, s), comm));
   if (st && s.structure.type == "pier") r.push_back(std::make_unique<PileMeanRecorder>(pile_band(sim, s), comm));
-  if (sim.has_blocks()) r.push_back(std::make_unique<BlocksRecorder>(st));
+  if (sim.has_blocks()) r.push_back(std::make_unique<BlocksRecorder>(st, comm));
   r.push_back(std::make_unique<EnergyRecorder>());
   r.push_back(std::make_unique<CountsRecorder>());
   if (sim.schedule().snapshot_every) r.push_back(std::make_unique<SnapshotRecorder>(comm));  // last: after the row

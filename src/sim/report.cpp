@@ -54,6 +54,7 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
   an.relax = hyb.relax_report();
   an.rest_window = f.rest_window;
   an.final_mean_block_speed = f.final_mean_block_speed;
+  an.final_mean_particle_speed = f.final_mean_particle_speed;
   if (const rigid::RigidWorld* w = hyb.world())
     for (const rigid::BlockId id : w->blocks())
       if (!w->fixed(id))
@@ -156,6 +157,7 @@ void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
       {"final_max_block_speed", a.final_max_block_speed},
       {"final_max_particle_speed", a.final_max_particle_speed},
       {"final_mean_block_speed", a.final_mean_block_speed},
+      {"final_mean_particle_speed", a.final_mean_particle_speed},
       {"rest_window", a.rest_window},
   };
   for (const auto& [name, value] : figures) f.set_attribute(g, name, value);
@@ -163,7 +165,8 @@ void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
                                                 "count, wall time per part (s, rank 0), rigid step (s); at the end "
                                                 "(the at-rest check): final_max_block_speed (centre speed + |omega| x "
                                                 "half diagonal, m/s), final_mean_block_speed (the largest mean speed "
-                                                "over the last rest_window s, m/s), final_max_particle_speed (m/s)"));
+                                                "over the last rest_window s, m/s), final_max_particle_speed (m/s), "
+                                                "final_mean_particle_speed (as the blocks', m/s)"));
 }
 
 /// /analysis/relaxation: what the relaxation before the freeze did (docs/bridge.md, "Relaxation").

@@ -44,9 +44,9 @@ struct RunReport {
   /// At the end of the run (the at-rest check, docs/bridge.md "Relaxation"): fastest rigid block
   /// (centre speed + |omega| x half diagonal) and fastest particle (all ranks), m/s.
   double final_max_block_speed = 0.0, final_max_particle_speed = 0.0;
-  /// The at-rest check's block figure: the largest mean speed of a block over the last
-  /// rest_window s (m/s; RunFigures, recorders.cpp RestWindow); rest_window 0: not measured.
-  double rest_window = 0.0, final_mean_block_speed = 0.0;
+  /// The at-rest check's figures: the largest mean speed of a block, and of a particle, over the
+  /// last rest_window s (m/s; RunFigures, recorders.cpp RestWindow); rest_window 0: not measured.
+  double rest_window = 0.0, final_mean_block_speed = 0.0, final_mean_particle_speed = 0.0;
 };
 
 /// Analyses the finished run. Collective: every rank calls it; the particles and bonds are

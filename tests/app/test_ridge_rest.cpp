@@ -2,7 +2,8 @@
 // 3 m keel of 32 blocks under a 13 x 5 m sheet with a consolidated layer, nothing pushing. After
 // the relaxation before the freeze, `hybridsim run` for 4 s in `never`, `hybrid` and
 // `all_at_start` must break no freeze joint and no block-particle freeze bond, convert nothing
-// after t = 0, end with every block and particle slower than 0.01 m/s and leave the sheet's mean
+// after t = 0, end with every block and particle slower than 0.01 m/s (mean over the last 0.1 s:
+// docs/bridge.md "Relaxation", item 10) and leave the sheet's mean
 // height within 2 cm of t = 0. The same run with the relaxation off (blocks.relax = false)
 // fails: the control below.
 #include <gtest/gtest.h>
@@ -84,7 +85,8 @@ struct Rest {
   double joints_broken = NAN, freeze_bonds_broken = NAN, conversions = NAN;
   /// m/s: the largest mean speed of a block over the run's last rest_window s (the at-rest
   /// figure; docs/bridge.md, "Relaxation"), and the largest speed at the last step.
-  double max_block_speed = NAN, max_block_speed_last_step = NAN, rest_window = NAN, max_particle_speed = NAN;
+  double max_block_speed = NAN, max_block_speed_last_step = NAN, rest_window = NAN;
+  double max_particle_speed = NAN, max_particle_speed_last_step = NAN;  ///< m/s, the same for particles
   double sheet_mean_dz = NAN;  ///< m, last snapshot - first (t = 0), particles matched by id
 };
 
@@ -98,6 +100,7 @@ Rest rest_figures(const fs::path& file) {
   r.max_block_speed = read_attribute(file, "/analysis/hybrid", "final_mean_block_speed");
   r.max_block_speed_last_step = read_attribute(file, "/analysis/hybrid", "final_max_block_speed");
   r.rest_window = read_attribute(file, "/analysis/hybrid", "rest_window");
+  r.max_particle_speed = read_attribute(file, "/analysis/hybrid", "final_mean_particle_speed");
   const auto id0 = read_doubles(file, "/snapshots/000000/global_id");
   const auto x0 = read_doubles(file, "/snapshots/000000/position");
   const auto id1 = read_doubles(file, "/snapshots/000001/global_id");
@@ -114,7 +117,7 @@ Rest rest_figures(const fs::path& file) {
     sum += x1[3 * i + 2] - it->second;
     ++n;
   }
-  r.max_particle_speed = vmax;
+  r.max_particle_speed_last_step = vmax;
   if (n) r.sheet_mean_dz = sum / static_cast<double>(n);
   return r;
 }
@@ -166,6 +169,10 @@ void expect_restart_continues(const std::string& extra, const std::string& name)
 // all_at_start converts before t = 0: its conversion count is checked by
 // expect_converted_before_t0 instead.
 void expect_at_rest(const Rest& r, const std::string& what, bool converted_before_t0 = false) {
+  std::printf("[ rest ] %s: fastest block %.3g m/s mean over %.4g s (%.3g at the last step), particle %.3g m/s "
+              "(%.3g), sheet mean dz %.3g m\n",
+              what.c_str(), r.max_block_speed, r.rest_window, r.max_block_speed_last_step, r.max_particle_speed,
+              r.max_particle_speed_last_step, r.sheet_mean_dz);
   EXPECT_EQ(r.joints_broken, 0.0) << what;
   EXPECT_EQ(r.freeze_bonds_broken, 0.0) << what;
   if (!converted_before_t0) {
@@ -173,11 +180,11 @@ void expect_at_rest(const Rest& r, const std::string& what, bool converted_befor
   }
   EXPECT_NEAR(r.rest_window, 0.1, 0.005) << what;  // whole rigid steps of ~1e-3 s
   EXPECT_LT(r.max_block_speed, 0.01) << what << " (at the last step " << r.max_block_speed_last_step << " m/s)";
-  EXPECT_LT(r.max_particle_speed, 0.01) << what;
+  EXPECT_LT(r.max_particle_speed, 0.01) << what << " (at the last step " << r.max_particle_speed_last_step << " m/s)";
   EXPECT_LT(std::abs(r.sheet_mean_dz), 0.02) << what;
 }
 
-TEST(RidgeRest, TheBlockFigureIsAMeanSpeedOverTheLastTenthOfASecond) {
+TEST(RidgeRest, TheFiguresAreMeanSpeedsOverTheLastTenthOfASecond) {
   // The at-rest block figure (final_mean_block_speed) is each block's displacement over the last
   // rest_window s divided by it, rotation counted at the half diagonal. A block falling freely
   // in air from rest for T = 0.5 s: its mean speed over [T - W, T] is g (T - W / 2) (+ g h / 2
@@ -187,7 +194,7 @@ TEST(RidgeRest, TheBlockFigureIsAMeanSpeedOverTheLastTenthOfASecond) {
   // Tolerance 2e-3 m/s (6x). Reading the last step's speed as the figure misses the mean by 0.49.
   write("fall.json", R"({
     "name": "fall",
-    "time": {"duration": 0.5, "output_interval": 0.05},
+    "time": {"duration": 0.5, "output_interval": 0.05, "snapshot_interval": 0.1},
     "material": {"particle_diameter": 0.25, "youngs_modulus": 1e7},
     "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, 0]},
     "blocks": {"list": [{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0]}], "relax": false}
@@ -209,6 +216,22 @@ TEST(RidgeRest, TheBlockFigureIsAMeanSpeedOverTheLastTenthOfASecond) {
   EXPECT_NEAR(last, 9.81 * 0.5, 2e-3);
   EXPECT_NE(r.out.find("m/s mean over the last"), std::string::npos) << r.out;
 
+  // The particles' figure likewise: the floating sheet, still finding its level, against the
+  // largest |x(0.5 s) - x(0.4 s)| / 0.1 s of the snapshots (ids in the same order: nothing breaks).
+  // Measured: 0.0121144 m/s against 0.0121193 from the snapshots (0.04 % apart: the window opens
+  // on the first DEM step within 0.1 s of the end), last step 0.00973 m/s. Tolerance 0.5 %.
+  const auto x4 = read_doubles(f, "/snapshots/000004/position");
+  const auto x5 = read_doubles(f, "/snapshots/000005/position");
+  ASSERT_EQ(x4.size(), x5.size());
+  double snap = 0.0;
+  for (std::size_t i = 0; i + 2 < x4.size(); i += 3)
+    snap = std::max(snap, std::hypot(x5[i] - x4[i], x5[i + 1] - x4[i + 1], x5[i + 2] - x4[i + 2]) / 0.1);
+  const double pmean = read_attribute(f, "/analysis/hybrid", "final_mean_particle_speed");
+  const double plast = read_attribute(f, "/analysis/hybrid", "final_max_particle_speed");
+  std::printf("particles: mean %.6g m/s, from the snapshots %.6g m/s, last step %.6g m/s\n", pmean, snap, plast);
+  EXPECT_NEAR(pmean, snap, 0.005 * snap);
+  EXPECT_GT(std::abs(pmean - plast), 0.1 * snap);  // the sheet is not steady: the two figures differ
+
   // A checkpoint inside the window carries the poses it opened with: the restart from 0.45 s
   // reports the same figure to the bit (a restart that opened the window anew would measure
   // 0.05 s: 4.66 m/s).
@@ -219,6 +242,7 @@ TEST(RidgeRest, TheBlockFigureIsAMeanSpeedOverTheLastTenthOfASecond) {
   EXPECT_NE(d.err.find("restarted from fall_c.ckpt.h5"), std::string::npos) << d.err;
   EXPECT_EQ(read_attribute(work_dir() / "fall_d.h5", "/analysis/hybrid", "final_mean_block_speed"), mean);
   EXPECT_EQ(read_attribute(work_dir() / "fall_d.h5", "/analysis/hybrid", "rest_window"), W);
+  EXPECT_EQ(read_attribute(work_dir() / "fall_d.h5", "/analysis/hybrid", "final_mean_particle_speed"), pmean);
 }
 
 TEST(RidgeRest, NeverStaysAtRest) { expect_at_rest(run_mode("never"), "never"); }
