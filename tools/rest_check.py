@@ -35,6 +35,8 @@ def main():
         h = f["analysis/hybrid"].attrs
         conv = h["conversion"] if "conversion" in h else "?"
         conv = conv.decode() if isinstance(conv, bytes) else str(conv)
+        # rest_window 0 (or absent): the run measured no window (no rigid block, or an older file)
+        windowed = "final_mean_particle_speed" in h and float(h["rest_window"]) > 0
         out = {
             "mode": conv,
             "t_end": float(s1.attrs["time"]) if "time" in s1.attrs else float("nan"),
@@ -45,12 +47,11 @@ def main():
             # The at-rest block figure: the largest mean speed of a block over the run's last
             # rest_window s (0.1 s; docs/bridge.md "Relaxation"); files from before it have only
             # the speed at the last step, which one-step contact hiccups can inflate.
-            "max_block_speed": float(h["final_mean_block_speed"] if "final_mean_block_speed" in h
-                                     else h["final_max_block_speed"]),
+            "max_block_speed": float(h["final_mean_block_speed"] if windowed else h["final_max_block_speed"]),
             "rest_window": float(h["rest_window"]) if "rest_window" in h else 0.0,
             "max_block_speed_last_step": float(h["final_max_block_speed"]),
             # Likewise for the particles (those bonded to a block follow its one-step turns).
-            "max_particle_speed": float(h["final_mean_particle_speed"] if "final_mean_particle_speed" in h
+            "max_particle_speed": float(h["final_mean_particle_speed"] if windowed
                                         else np.sqrt((v1 ** 2).sum(axis=1)).max()),
             "max_particle_speed_last_step": float(np.sqrt((v1 ** 2).sum(axis=1)).max()),
             "sheet_mean_dz": float(dz.mean()) if dz.size else 0.0,

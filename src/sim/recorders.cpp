@@ -307,7 +307,7 @@ class PileMeanRecorder : public Recorder {
   RunningMax max_;
 };
 
-// ---- the blocks' mean speed over the run's last kRestWindow seconds (the at-rest check)
+// ---- the blocks' and particles' mean speeds over the run's last kRestWindow seconds (the at-rest check)
 /// Every block's mean speed over the run's last kRestWindow seconds: (|centre displacement| +
 /// rotation angle x half diagonal) / time, between its pose when the window opens and its pose at
 /// the last step (docs/bridge.md, "Relaxation"); and every particle's, |displacement| / time. The
