@@ -7,7 +7,7 @@ global id; --sheet N takes only ids < N, the particles built before any conversi
   /usr/bin/python3 tools/rest_check.py run.h5 [--sheet N] [--limits]
 
 With --limits it exits 1 unless: no joints or freeze bonds broken, no conversions (unless the run's
-mode is all_at_start), every block and every particle slower than 0.01 m/s on average over the
+mode is all_at_start), every block and every particle slower than 0.01 m/s on average (path length / time) over the
 run's last 0.1 s (rest_window; the speeds at the last step are printed beside them; files from
 before that figure are judged by the last step), |mean dz| < 0.02 m.
 """

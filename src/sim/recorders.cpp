@@ -308,37 +308,47 @@ class PileMeanRecorder : public Recorder {
 };
 
 // ---- the blocks' and particles' mean speeds over the run's last kRestWindow seconds (the at-rest check)
-/// Every block's mean speed over the run's last kRestWindow seconds: (|centre displacement| +
-/// rotation angle x half diagonal) / time, between its pose when the window opens and its pose at
-/// the last step (docs/bridge.md, "Relaxation"); and every particle's, |displacement| / time. The
-/// instantaneous speed of a block at rest can read a few cm/s for one rigid step when Bullet
-/// swaps a load-carrying point of a full contact manifold (docs/rigid.md, "Manifold chatter": a
-/// 4e-5 rad turn that stops the next step), and the particles bonded to it follow; over the
-/// window such a step counts as what it is, a displacement of a few hundredths of a mm, while a
-/// block or particle that moves at v for the window still reads v. Blocks converted and
-/// particles made in the window are left out. Every rank keeps the whole sheet's start positions
-/// (gathered once), so the figure and a checkpoint's copy of them do not depend on the ranks. A
-/// restart inside the window with a checkpoint from before this figure existed opens it at the
-/// restart (the window is then shorter; its length is reported).
+/// Every block's mean speed over the run's last kRestWindow seconds: the length of the path it
+/// made (|centre displacement| + rotation angle x half diagonal, summed over every rigid step of
+/// the window) divided by the window (docs/bridge.md, "Relaxation"); and every particle's, the
+/// path of its centre sampled at the same rigid steps, divided by the window. The instantaneous
+/// speed of a block at rest can read a few cm/s for one rigid step when Bullet swaps a
+/// load-carrying point of a full contact manifold (docs/rigid.md, "Manifold chatter": a 4e-5 rad
+/// turn that stops the next step), and the particles bonded to it follow; over the window such a
+/// step counts as what it is, a path of a few hundredths of a mm, while a block or particle that
+/// moves at v for the window -- steadily, or back and forth (rocking, spinning, vibrating in its
+/// bonds: a net displacement would read ~0 there) -- still reads v. Motion that reverses within
+/// one rigid step (~1 ms) is undercounted for particles. Blocks converted and particles made in the
+/// window are left out; a particle removed in it counts with the path it made. Every rank keeps
+/// the whole sheet's positions and paths (gathered at each sample), so the figure and a
+/// checkpoint's copy do not depend on the ranks. A restart inside the window with a checkpoint from
+/// before these paths existed opens the window at the restart (the window is then shorter; its
+/// length is reported).
 class RestWindow {
  public:
   explicit RestWindow(const par::Comm& comm) : comm_(comm) {}
+  /// After every DEM step, and at the initial row (a run shorter than the window opens it there).
   void after_step(const Simulation& sim) {
+    const rigid::RigidWorld& world = *sim.hybrid().world();
+    if (open_) {
+      if (world.step_count() != rigid_steps_) sample(sim);
+      return;
+    }
     const auto& sc = sim.schedule();
     const std::uint64_t w = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::ceil(kRestWindow / sc.dt - 1e-9)));
-    if (open_ || sim.engine().step_count() + w < sc.total_steps) return;
-    const rigid::RigidWorld& world = *sim.hybrid().world();
+    if (sim.engine().step_count() + w < sc.total_steps) return;
     open_ = true;
     t0_ = world.time();
     te0_ = sim.engine().time();
+    rigid_steps_ = world.step_count();
     open_particles(sim.engine());
-    poses_.clear();
+    blocks_.clear();
     for (const rigid::BlockId id : world.blocks()) {
       if (world.fixed(id)) continue;
       const Vec3 x = world.position(id);
       const Quat q = world.orientation(id);
-      poses_.push_back({static_cast<double>(id.index), static_cast<double>(id.generation), x.x(), x.y(), x.z(), q.w(),
-                        q.x(), q.y(), q.z()});
+      blocks_.push_back({static_cast<double>(id.index), static_cast<double>(id.generation), x.x(), x.y(), x.z(), q.w(),
+                         q.x(), q.y(), q.z(), 0.0});
     }
   }
   /// At the last step (collective): the figures (RunFigures::rest_window, final_mean_block_speed,
@@ -348,25 +358,11 @@ class RestWindow {
     window_ = open_ ? world.time() - t0_ : 0.0;
     speed_ = particle_speed_ = 0.0;
     if (!(window_ > 0)) return;
-    const auto& ps = sim.engine().particles();
+    if (sample_step_ != sim.engine().step_count()) sample(sim);  // the particles' last stretch
     const double te = sim.engine().time() - te0_;
-    double vp = 0.0;
-    for (std::size_t i = 0; i < ps.owned() && te > 0; ++i) {
-      const double g = static_cast<double>(ps.gid[i]);
-      const auto it = std::lower_bound(gids_.begin(), gids_.end(), g);
-      if (it == gids_.end() || *it != g) continue;  // made in the window
-      const std::size_t k = static_cast<std::size_t>(it - gids_.begin());
-      vp = std::max(vp, (ps.x[i] - Vec3(x0_[3 * k], x0_[3 * k + 1], x0_[3 * k + 2])).norm() / te);
-    }
-    particle_speed_ = comm_.max(vp);
-    for (const auto& p : poses_) {
-      const rigid::BlockId id{static_cast<std::uint32_t>(p[0]), static_cast<std::uint32_t>(p[1])};
-      if (!world.alive(id)) continue;
-      const double moved = (world.position(id) - Vec3(p[2], p[3], p[4])).norm() +
-                           world.orientation(id).angularDistance(Quat(p[5], p[6], p[7], p[8])) *
-                               world.half_extents(id).norm();
-      speed_ = std::max(speed_, moved / window_);
-    }
+    for (std::size_t k = 0; k < path_.size() && te > 0; ++k) particle_speed_ = std::max(particle_speed_, path_[k] / te);
+    for (const auto& b : blocks_)
+      if (world.alive(block_id(b))) speed_ = std::max(speed_, b[9] / window_);
   }
   void figures(RunFigures& f) const {
     f.rest_window = window_;
@@ -374,30 +370,41 @@ class RestWindow {
     f.final_mean_particle_speed = particle_speed_;
   }
   void save(StateArchive& a, const std::string& p) const {
-    a.put_value(p + "rest_open", static_cast<std::uint64_t>(open_));
-    a.put(p + "rest_t0", std::vector<double>{t0_});
+    a.put_value(p + "rest_path_open", static_cast<std::uint64_t>(open_));
+    a.put(p + "rest_path_clock", std::vector<double>{t0_, te0_});
+    a.put(p + "rest_path_steps", std::vector<std::uint64_t>{rigid_steps_, sample_step_});
     std::vector<double> flat;
-    for (const auto& x : poses_) flat.insert(flat.end(), x.begin(), x.end());
-    a.put(p + "rest_poses", flat);
-    a.put(p + "rest_te0", std::vector<double>{te0_});
-    a.put(p + "rest_gids", gids_);
-    a.put(p + "rest_x0", x0_);
+    for (const auto& b : blocks_) flat.insert(flat.end(), b.begin(), b.end());
+    a.put(p + "rest_path_blocks", flat);
+    a.put(p + "rest_path_gids", gids_);
+    a.put(p + "rest_path_x", x_);
+    a.put(p + "rest_path_particles", path_);
   }
   void load(const StateArchive& a, const std::string& p) {
-    if (!a.has(p + "rest_open")) return;  // a checkpoint from before this figure: opens after the restart
-    open_ = a.get_value<std::uint64_t>(p + "rest_open") != 0;
-    t0_ = a.get<double>(p + "rest_t0").at(0);
-    const auto flat = a.get<double>(p + "rest_poses");
-    poses_.assign(flat.size() / 9, {});
-    for (std::size_t k = 0; k < poses_.size(); ++k) std::copy_n(flat.begin() + 9 * k, 9, poses_[k].begin());
-    te0_ = a.get<double>(p + "rest_te0").at(0);
-    gids_ = a.get<double>(p + "rest_gids");
-    x0_ = a.get<double>(p + "rest_x0");
+    // A checkpoint from before the paths (net displacements, "rest_open"; or before any window)
+    // cannot give the path made before it: the window opens at the restart.
+    if (!a.has(p + "rest_path_open")) return;
+    open_ = a.get_value<std::uint64_t>(p + "rest_path_open") != 0;
+    const auto clock = a.get<double>(p + "rest_path_clock");
+    const auto steps = a.get<std::uint64_t>(p + "rest_path_steps");
+    t0_ = clock.at(0);
+    te0_ = clock.at(1);
+    rigid_steps_ = steps.at(0);
+    sample_step_ = steps.at(1);
+    const auto flat = a.get<double>(p + "rest_path_blocks");
+    blocks_.assign(flat.size() / 10, {});
+    for (std::size_t k = 0; k < blocks_.size(); ++k) std::copy_n(flat.begin() + 10 * k, 10, blocks_[k].begin());
+    gids_ = a.get<double>(p + "rest_path_gids");
+    x_ = a.get<double>(p + "rest_path_x");
+    path_ = a.get<double>(p + "rest_path_particles");
   }
 
  private:
-  /// Every particle's global id and position, gathered from all ranks onto every rank, in id order.
-  void open_particles(const bonded::Engine& e) {
+  static rigid::BlockId block_id(const std::array<double, 10>& b) {
+    return {static_cast<std::uint32_t>(b[0]), static_cast<std::uint32_t>(b[1])};
+  }
+  /// Every particle's global id and position, gathered from all ranks onto every rank.
+  std::vector<std::array<double, 4>> gather_particles(const bonded::Engine& e) const {
     const auto& ps = e.particles();
     par::Bytes mine(ps.owned() * 4 * sizeof(double));
     for (std::size_t i = 0; i < ps.owned(); ++i) {
@@ -408,20 +415,50 @@ class RestWindow {
     const std::string all = comm_.broadcast(comm_.rank() == 0 ? std::string(all0.begin(), all0.end()) : std::string());
     std::vector<std::array<double, 4>> rec(all.size() / (4 * sizeof(double)));
     if (!rec.empty()) std::memcpy(static_cast<void*>(rec.data()), all.data(), rec.size() * 4 * sizeof(double));
+    return rec;
+  }
+  void open_particles(const bonded::Engine& e) {
+    auto rec = gather_particles(e);
     std::sort(rec.begin(), rec.end(), [](const auto& a, const auto& b) { return a[0] < b[0]; });
     gids_.resize(rec.size());
-    x0_.resize(3 * rec.size());
+    x_.resize(3 * rec.size());
+    path_.assign(rec.size(), 0.0);
     for (std::size_t k = 0; k < rec.size(); ++k) {
       gids_[k] = rec[k][0];
-      std::copy_n(rec[k].begin() + 1, 3, x0_.begin() + 3 * k);
+      std::copy_n(rec[k].begin() + 1, 3, x_.begin() + 3 * k);
     }
+    sample_step_ = e.step_count();
+  }
+  /// One sample (collective): every block's and particle's path since the last one.
+  void sample(const Simulation& sim) {
+    const rigid::RigidWorld& world = *sim.hybrid().world();
+    for (auto& b : blocks_) {
+      const rigid::BlockId id = block_id(b);
+      if (!world.alive(id)) continue;
+      const Vec3 x = world.position(id);
+      const Quat q = world.orientation(id);
+      b[9] += (x - Vec3(b[2], b[3], b[4])).norm() + q.angularDistance(Quat(b[5], b[6], b[7], b[8])) * world.half_extents(id).norm();
+      b[2] = x.x(), b[3] = x.y(), b[4] = x.z(), b[5] = q.w(), b[6] = q.x(), b[7] = q.y(), b[8] = q.z();
+    }
+    rigid_steps_ = world.step_count();
+    for (const auto& r : gather_particles(sim.engine())) {
+      const auto it = std::lower_bound(gids_.begin(), gids_.end(), r[0]);
+      if (it == gids_.end() || *it != r[0]) continue;  // made in the window
+      const std::size_t k = static_cast<std::size_t>(it - gids_.begin());
+      double* xk = &x_[3 * k];
+      path_[k] += std::hypot(r[1] - xk[0], r[2] - xk[1], r[3] - xk[2]);
+      std::copy_n(r.begin() + 1, 3, xk);
+    }
+    sample_step_ = sim.engine().step_count();
   }
 
   const par::Comm& comm_;
   bool open_ = false;
   double t0_ = 0.0, te0_ = 0.0, window_ = 0.0, speed_ = 0.0, particle_speed_ = 0.0;
-  std::vector<std::array<double, 9>> poses_;  ///< index, generation, position, orientation (w x y z)
-  std::vector<double> gids_, x0_;             ///< particles when the window opened: ids (sorted), positions
+  std::uint64_t rigid_steps_ = 0, sample_step_ = 0;  ///< the rigid and DEM steps of the last sample
+  /// Blocks: index, generation, pose at the last sample (position, orientation w x y z), path [m].
+  std::vector<std::array<double, 10>> blocks_;
+  std::vector<double> gids_, x_, path_;  ///< particles present at the opening: ids (sorted), last sampled positions, paths
 };
 
 // ---- /series/blocks/...: the rigid blocks
@@ -463,6 +500,7 @@ class BlocksRecorder : public Recorder {
     f.append(id_joints_, &nj);
     f.append(id_awake_, &nawake);
     n_ = 0;
+    if (sim.engine().step_count() == 0) rest_.after_step(sim);  // the initial row: a run shorter than the window
     if (sim.engine().step_count() == sim.schedule().total_steps) rest_.finish(sim);
   }
   void figures(RunFigures& fig) const override { rest_.figures(fig); }

@@ -164,8 +164,8 @@ void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
   f.set_attribute(g, "description", std::string("rigid/particle hybrid: conversions, particles created, peak particle "
                                                 "count, wall time per part (s, rank 0), rigid step (s); at the end "
                                                 "(the at-rest check): final_max_block_speed (centre speed + |omega| x "
-                                                "half diagonal, m/s), final_mean_block_speed (the largest mean speed "
-                                                "over the last rest_window s, m/s), final_max_particle_speed (m/s), "
+                                                "half diagonal, m/s), final_mean_block_speed (the largest mean speed, "
+                                                "path length over time, over the last rest_window s, m/s), final_max_particle_speed (m/s), "
                                                 "final_mean_particle_speed (as the blocks', m/s)"));
 }
 
