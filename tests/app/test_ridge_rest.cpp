@@ -253,20 +253,37 @@ TEST(RidgeRest, TheFiguresAreMeanSpeedsOverTheLastTenthOfASecond) {
   EXPECT_EQ(read_attribute(work_dir() / "fall_d.h5", "/analysis/hybrid", "rest_window"), W);
   EXPECT_EQ(read_attribute(work_dir() / "fall_d.h5", "/analysis/hybrid", "final_mean_particle_speed"), pmean);
 
-  // Nor do they depend on the rank count: every rank gathers the whole sheet at each sample. The
-  // same run on 2 ranks, and the 1-rank checkpoint at 0.45 s (inside the window) continued on 2
-  // ranks. Measured: the block figure bit-identical (the rigid world is replicated), the
-  // particles' 1.3e-15 and 3.9e-14 relative apart (the engine's round-off across rank counts).
-  // Tolerance 1e-12 relative. (A rank that sampled only its own particles would pass here: the
-  // fastest particle is on rank 0 in this scene.)
-  for (const std::string args : {"run fall.json -o fall_m2.h5",
-                                 "run fall.json -o fall_m2r.h5 --set time.checkpoint_interval=0.45 --restart fall_c.h5"}) {
+  // Nor do they depend on the rank count: every rank gathers the whole sheet at each sample. A
+  // second block lands on the sheet's +x side, so the sheet tilts and its fastest particles lie
+  // on one rank's side of the cut (x = 0.99 m on 2 ranks). The run on 2 ranks, and its 1-rank
+  // checkpoint at 0.45 s (inside the window) continued on 2 ranks, against the 1-rank run.
+  // Measured: blocks bit-identical (the rigid world is replicated), particles 0.38663559202 m/s,
+  // 6e-16 relative apart on 2 ranks (the engine's round-off across rank counts). Tolerance 1e-12
+  // relative. A build whose ranks sample only their own particles reads 0.246 m/s on 2 ranks
+  // (checked).
+  write("tilt.json", R"({
+    "name": "tilt",
+    "time": {"duration": 0.5, "output_interval": 0.05, "snapshot_interval": 0.1},
+    "material": {"particle_diameter": 0.25, "youngs_modulus": 1e7},
+    "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, 0]},
+    "blocks": {"list": [{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0]},
+                        {"half_extents": [0.3, 0.3, 0.15], "position": [1.6, 1.0, 0.6]}], "relax": false}
+  })");
+  const auto t1 = hybridsim("run tilt.json -o tilt_1.h5 --set time.checkpoint_interval=0.45");
+  ASSERT_EQ(t1.rc, 0) << t1.err;
+  const fs::path tf = work_dir() / "tilt_1.h5";
+  const double tblock = read_attribute(tf, "/analysis/hybrid", "final_mean_block_speed");
+  const double tpart = read_attribute(tf, "/analysis/hybrid", "final_mean_particle_speed");
+  std::printf("tilted sheet, 1 rank: block %.10g m/s, particle %.10g m/s\n", tblock, tpart);
+  EXPECT_GT(tpart, 0.1);  // the landing block moves the sheet
+  for (const std::string out : {"tilt_2.h5", "tilt_2r.h5"}) {
+    const std::string args =
+        "run tilt.json -o " + out + (out == "tilt_2r.h5" ? " --set time.checkpoint_interval=0.45 --restart tilt_1.h5" : "");
     const auto m = hs::testing::run_hybridsim(work_dir(), args, hs::testing::mpirun_prefix(2));
     ASSERT_EQ(m.rc, 0) << args << "\n" << m.err;
-    const fs::path mf = work_dir() / (args.find("m2r") != std::string::npos ? "fall_m2r.h5" : "fall_m2.h5");
-    EXPECT_EQ(read_attribute(mf, "/analysis/hybrid", "final_mean_block_speed"), mean) << args;
-    EXPECT_EQ(read_attribute(mf, "/analysis/hybrid", "rest_window"), W) << args;
-    EXPECT_NEAR(read_attribute(mf, "/analysis/hybrid", "final_mean_particle_speed"), pmean, 1e-12 * pmean) << args;
+    const fs::path mf = work_dir() / out;
+    EXPECT_EQ(read_attribute(mf, "/analysis/hybrid", "final_mean_block_speed"), tblock) << args;
+    EXPECT_NEAR(read_attribute(mf, "/analysis/hybrid", "final_mean_particle_speed"), tpart, 1e-12 * tpart) << args;
   }
 
   // The particles' figure is a path, sampled at every rigid step: run the same scene for 0.1 s (no
