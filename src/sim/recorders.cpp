@@ -322,7 +322,7 @@ class PileMeanRecorder : public Recorder {
 /// window are left out; a particle removed in it counts with the path it made. Every rank keeps
 /// the whole sheet's positions and paths (gathered at each sample), so the figure and a
 /// checkpoint's copy do not depend on the ranks. A restart inside the window with a checkpoint from
-/// before these paths existed opens the window at the restart (the window is then shorter; its
+/// before these paths existed opens the window at the first step after the restart (the window is then shorter; its
 /// length is reported).
 class RestWindow {
  public:
@@ -382,7 +382,7 @@ class RestWindow {
   }
   void load(const StateArchive& a, const std::string& p) {
     // A checkpoint from before the paths (net displacements, "rest_open"; or before any window)
-    // cannot give the path made before it: the window opens at the restart.
+    // cannot give the path made before it: the window opens at the first step after the restart.
     if (!a.has(p + "rest_path_open")) return;
     open_ = a.get_value<std::uint64_t>(p + "rest_path_open") != 0;
     const auto clock = a.get<double>(p + "rest_path_clock");
