@@ -186,6 +186,19 @@ void expect_at_rest(const Rest& r, const std::string& what, bool converted_befor
   EXPECT_LT(std::abs(r.sheet_mean_dz), 0.02) << what;
 }
 
+/// The at-rest figures' test scene: a 2 x 2 m floating sheet (D = 0.25 m) and the given blocks
+/// (a JSON array), run for `duration` s with snapshots every `snapshot_interval` s.
+void write_sheet_scene(const std::string& name, double duration, double snapshot_interval, const std::string& blocks) {
+  char head[256];
+  std::snprintf(head, sizeof head,
+                R"({"name": "%s", "time": {"duration": %.17g, "output_interval": 0.05, "snapshot_interval": %.17g},)",
+                name.c_str(), duration, snapshot_interval);
+  write(name + ".json", std::string(head) + R"(
+    "material": {"particle_diameter": 0.25, "youngs_modulus": 1e7},
+    "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, 0]},
+    "blocks": {"list": )" + blocks + R"(, "relax": false}})");
+}
+
 TEST(RidgeRest, TheFiguresAreMeanSpeedsOverTheLastTenthOfASecond) {
   // The at-rest block figure (final_mean_block_speed) is the length of each block's path over the
   // last rest_window s (centre displacement + rotation angle x half diagonal, summed over the
@@ -198,14 +211,8 @@ TEST(RidgeRest, TheFiguresAreMeanSpeedsOverTheLastTenthOfASecond) {
   // displacement over the window (the figure before stop 41) reads the spin as the 0.045 rad by
   // which 0.1007 s of it exceeds a whole turn: 4.648576 m/s, 33 m/s short.
   const double w = 20.0 * M_PI, hd = std::sqrt(0.4 * 0.4 + 0.3 * 0.3 + 0.15 * 0.15);
-  write("fall.json", R"({
-    "name": "fall",
-    "time": {"duration": 0.5, "output_interval": 0.05, "snapshot_interval": 0.1},
-    "material": {"particle_diameter": 0.25, "youngs_modulus": 1e7},
-    "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, 0]},
-    "blocks": {"list": [{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0],
-                         "angular_velocity": [0, 0, 62.83185307179586]}], "relax": false}
-  })");
+  write_sheet_scene("fall", 0.5, 0.1, R"([{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0],
+                                         "angular_velocity": [0, 0, 62.83185307179586]}])");
   const auto r = hybridsim("run fall.json -o fall.h5");
   ASSERT_EQ(r.rc, 0) << r.err;
   const fs::path f = work_dir() / "fall.h5";
@@ -261,14 +268,8 @@ TEST(RidgeRest, TheFiguresAreMeanSpeedsOverTheLastTenthOfASecond) {
   // 6e-16 relative apart on 2 ranks (the engine's round-off across rank counts). Tolerance 1e-12
   // relative. A build whose ranks sample only their own particles reads 0.246 m/s on 2 ranks
   // (checked).
-  write("tilt.json", R"({
-    "name": "tilt",
-    "time": {"duration": 0.5, "output_interval": 0.05, "snapshot_interval": 0.1},
-    "material": {"particle_diameter": 0.25, "youngs_modulus": 1e7},
-    "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, 0]},
-    "blocks": {"list": [{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0]},
-                        {"half_extents": [0.3, 0.3, 0.15], "position": [1.6, 1.0, 0.6]}], "relax": false}
-  })");
+  write_sheet_scene("tilt", 0.5, 0.1, R"([{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0]},
+                                         {"half_extents": [0.3, 0.3, 0.15], "position": [1.6, 1.0, 0.6]}])");
   const auto t1 = hybridsim("run tilt.json -o tilt_1.h5 --set time.checkpoint_interval=0.45");
   ASSERT_EQ(t1.rc, 0) << t1.err;
   const fs::path tf = work_dir() / "tilt_1.h5";
@@ -292,13 +293,7 @@ TEST(RidgeRest, TheFiguresAreMeanSpeedsOverTheLastTenthOfASecond) {
   // figure, to round-off. Measured: 0.005512225002008711 m/s both; the net displacement over the
   // run reads 0.005491297 (0.38 % less: the sheet settles, the fastest particle does not move in a
   // straight line), so a figure taken from the displacement fails by ~4e5x the tolerance.
-  write("short.json", R"({
-    "name": "short",
-    "time": {"duration": 0.1, "output_interval": 0.05, "snapshot_interval": 0.0011989},
-    "material": {"particle_diameter": 0.25, "youngs_modulus": 1e7},
-    "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, 0]},
-    "blocks": {"list": [{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0]}], "relax": false}
-  })");
+  write_sheet_scene("short", 0.1, 0.0011989, R"([{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0]}])");
   const auto s = hybridsim("run short.json -o short.h5");
   ASSERT_EQ(s.rc, 0) << s.err;
   const fs::path sf = work_dir() / "short.h5";
