@@ -21,6 +21,7 @@
 
 #include <algorithm>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 namespace hs::rigid::detail {
@@ -296,7 +297,106 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
     if (!managed_sleep) btDiscreteDynamicsWorld::updateActivationState(dt);
   }
 
+  /// With managed_sleep: called after each solve (set by the owner). Returns true when it woke
+  /// sleeping bodies the solve took (RigidWorld's check_sleepers: each now dynamic, appended to
+  /// `stepped`, its joints to `awake_joints`); the solve is then done again from the state before
+  /// it -- the stepped bodies' velocities and poses, the solved contact points' impulses and
+  /// friction directions -- with those bodies awake, and they are integrated with the others.
+  std::function<bool()> after_solve;
+  std::size_t repeated_solves = 0;  ///< solves done again (a count, for tests and benches)
+  /// With managed_sleep: set by the owner before each step, false when no block sleeps and nothing
+  /// is left to check (the solve is then neither saved nor checked).
+  bool check_after_solve = false;
+
   void solveConstraints(btContactSolverInfo& info) override {
+    if (!managed_sleep || !after_solve || !check_after_solve) return solve_once(info, false);
+    first_round_ = true;
+    solve_once(info, true);
+    for (std::size_t n = stepped.size(); after_solve(); n = stepped.size()) {
+      ++repeated_solves;
+      // The woken bodies were fixed in the solve (not written): their state now is the one before it.
+      for (std::size_t i = n; i < stepped.size(); ++i)
+        saved_bodies_.push_back({stepped[i], stepped[i]->getLinearVelocity(), stepped[i]->getAngularVelocity(),
+                                 stepped[i]->getWorldTransform()});
+      restore_before_solve();
+      restep_bodies();
+      solve_once(info, true);  // (saves the contact points the woken bodies brought in)
+    }
+  }
+
+  /// The contact manifolds of the last solve (those with an awake body), in solve order.
+  const std::vector<btPersistentManifold*>& solved_manifolds() const { return manifolds_; }
+
+ private:
+  // What a solve writes: the bodies' velocities and (split impulse) poses, and each solved contact
+  // point's impulses and friction directions (Bullet's btSequentialImpulseConstraintSolver; the
+  // joints' rows and feedback start from zero in every solve).
+  struct BodyState {
+    btRigidBody* body;
+    btVector3 v, w;
+    btTransform pose;
+  };
+  struct PointState {
+    btManifoldPoint* point;
+    btScalar j, j1, j2;
+    btVector3 d1, d2;
+    int flags;
+  };
+  std::vector<BodyState> saved_bodies_;
+  std::vector<PointState> saved_points_;
+  std::vector<btPersistentManifold*> saved_manifolds_;  // sorted (by address)
+  bool first_round_ = true;
+  /// The first solve of a step: the stepped bodies and the solved contact points; a repeated one:
+  /// the contact points not saved yet (the woken bodies' contacts with sleeping ones).
+  void save_before_solve() {
+    if (first_round_) {
+      saved_bodies_.clear();
+      for (int i = 0; i < m_nonStaticRigidBodies.size(); ++i) {
+        btRigidBody* b = m_nonStaticRigidBodies[i];
+        saved_bodies_.push_back({b, b->getLinearVelocity(), b->getAngularVelocity(), b->getWorldTransform()});
+      }
+      saved_points_.clear();
+      saved_manifolds_.clear();
+    }
+    const std::size_t before = saved_manifolds_.size();
+    for (btPersistentManifold* m : manifolds_) {
+      if (!first_round_ && std::binary_search(saved_manifolds_.begin(), saved_manifolds_.begin() + before, m)) continue;
+      saved_manifolds_.push_back(m);
+      for (int c = 0; c < m->getNumContacts(); ++c) {
+        btManifoldPoint& p = m->getContactPoint(c);
+        saved_points_.push_back({&p, p.m_appliedImpulse, p.m_appliedImpulseLateral1, p.m_appliedImpulseLateral2,
+                                 p.m_lateralFrictionDir1, p.m_lateralFrictionDir2, p.m_contactPointFlags});
+      }
+    }
+    std::sort(saved_manifolds_.begin(), saved_manifolds_.end());
+    first_round_ = false;
+  }
+  void restore_before_solve() {
+    for (const BodyState& s : saved_bodies_) {
+      s.body->setLinearVelocity(s.v);
+      s.body->setAngularVelocity(s.w);
+      s.body->setWorldTransform(s.pose);
+    }
+    for (const PointState& s : saved_points_) {
+      btManifoldPoint& p = *s.point;
+      p.m_appliedImpulse = s.j;
+      p.m_appliedImpulseLateral1 = s.j1;
+      p.m_appliedImpulseLateral2 = s.j2;
+      p.m_lateralFrictionDir1 = s.d1;
+      p.m_lateralFrictionDir2 = s.d2;
+      p.m_contactPointFlags = s.flags;
+    }
+  }
+  /// The stepped bodies (with those woken after a solve) as the array the solve and the integration
+  /// walk, in Bullet's order.
+  void restep_bodies() {
+    std::sort(stepped.begin(), stepped.end(),
+              [](const btRigidBody* a, const btRigidBody* b) { return a->getUserIndex3() < b->getUserIndex3(); });
+    m_nonStaticRigidBodies.resize(static_cast<int>(stepped.size()));
+    for (std::size_t i = 0; i < stepped.size(); ++i) m_nonStaticRigidBodies[static_cast<int>(i)] = stepped[i];
+  }
+
+  void solve_once(btContactSolverInfo& info, bool save) {
     btDispatcher* d = getDispatcher();
     // Sleeping and waking, as Bullet's buildAndProcessIslands does before it solves.
     if (!managed_sleep) m_islandManager->buildIslands(d, this);
@@ -320,6 +420,7 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
         if (c && c->isEnabled() && (awake(&c->getRigidBodyA()) || awake(&c->getRigidBodyB())))
           constraints_.push_back(c);
     }
+    if (save) save_before_solve();
     m_constraintSolver->prepareSolve(getNumCollisionObjects(), d->getNumManifolds());
     if (!bodies_.empty() || !manifolds_.empty() || !constraints_.empty())
       m_constraintSolver->solveGroup(bodies_.empty() ? nullptr : bodies_.data(), static_cast<int>(bodies_.size()),
@@ -330,10 +431,6 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
     m_constraintSolver->allSolved(info, m_debugDrawer);
   }
 
-  /// The contact manifolds of the last solve (those with an awake body), in solve order.
-  const std::vector<btPersistentManifold*>& solved_manifolds() const { return manifolds_; }
-
- private:
   bool nonstatic_order_stale_ = true;
   bool in_step_ = false;  // inside a managed stepSimulation
   btAlignedObjectArray<btRigidBody*> all_nonstatic_;  // m_nonStaticRigidBodies outside a managed step

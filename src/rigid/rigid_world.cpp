@@ -37,9 +37,9 @@ struct BlockSlot {
   // Far sleep (RigidWorldDef::far_sleep).
   bool asleep = false;
   double still = 0.0;  // s the block and its neighbours have been still
-  // While asleep: its body's pose, kept equal to it (put_to_sleep, set_pose; after a solve that
-  // took it, the pose is put back or the block wakes: settle_sleepers), so that update_sleep need
-  // not read every sleeping body.
+  // While asleep: its body's pose, kept equal to it (put_to_sleep, set_pose; the solve does not
+  // move a sleeping block: it has no mass there), so that update_sleep need not read every
+  // sleeping body.
   btTransform sleep_pose = btTransform::getIdentity();
 };
 
@@ -143,6 +143,23 @@ struct RigidWorld::Impl {
   std::vector<std::uint8_t> state;
   std::vector<std::uint32_t> gen;  // BlockSlot::generation, for the checks of asleep(id)
   std::vector<Vec3> sleep_centre;  // BlockSlot::sleep_pose's origin (update_sleep's wake-zone test)
+  // Far sleep's hold (check_sleepers): per block slot, the impulse and the angular impulse about its
+  // centre that the solve gave the block in its first solve asleep (the reference); hold_fresh: the
+  // reference is taken at the next solve (the block fell asleep, or a block it touches or is
+  // jointed to did, so that the set of its solved contacts and joints changed).
+  std::vector<Vec3> hold_j, hold_l;
+  std::vector<char> hold_fresh;
+  std::vector<std::uint32_t> hold_fresh_list;
+  // Scratch of check_sleepers: this solve's impulses on sleeping blocks, the sleepers the solve
+  // took (touched) and those of the sub-step's last solve (touched_before).
+  std::vector<Vec3> solve_j, solve_l;
+  std::vector<char> solve_seen;
+  std::vector<std::uint32_t> touched, touched_before, to_wake;
+  std::size_t sleepers_woken_by_solve = 0;  // a count, for tests and benches
+  void mark_hold_fresh(std::size_t k) {
+    if (!hold_fresh[k]) hold_fresh_list.push_back(static_cast<std::uint32_t>(k));
+    hold_fresh[k] = 1;
+  }
   void set_loaded(std::size_t k) {
     const BlockSlot& s = blocks[k];
     const bool loaded = !s.ext_force.isZero(0.0) || !s.ext_torque.isZero(0.0) || !s.imp_linear.isZero(0.0) ||
@@ -218,11 +235,16 @@ struct RigidWorld::Impl {
     const double s = def.joint_stiffness, I = d.area * d.area / (4.0 * 3.14159265358979323846);
     const Mat3 R = q.toRotationMatrix();
     auto reduced = [](double a, double b) { return a > 0.0 && b > 0.0 ? a * b / (a + b) : std::max(a, b); };
-    auto mass = [](const btRigidBody& b) { return b.getInvMass() > 0.0 ? 1.0 / b.getInvMass() : 0.0; };
+    // A sleeping block has no mass in the solve (put_to_sleep): its awake values (solve_mass).
+    auto mass = [&](const btRigidBody& b) {
+      const SolveMass sm = solve_mass(b);
+      return sm.inv_mass > 0.0 ? 1.0 / sm.inv_mass : 0.0;
+    };
     auto inertia = [&](const btRigidBody& b, const Vec3& axis) {  // about `axis` through the anchor
-      if (!(b.getInvMass() > 0.0)) return 0.0;
+      const SolveMass sm = solve_mass(b);
+      if (!(sm.inv_mass > 0.0)) return 0.0;
       const Vec3 r = d.anchor - from_bt(b.getCenterOfMassPosition());
-      return mass(b) * r.squaredNorm() + 1.0 / from_bt(b.getInvInertiaTensorWorld() * to_bt(axis)).norm();
+      return mass(b) * r.squaredNorm() + 1.0 / from_bt(sm.inv_inertia_world * to_bt(axis)).norm();
     };
     for (int k = 0; k < 6; ++k) {
       const double kk = k < 3 ? s * d.area : s * (k == 3 ? 2.0 * I : I);
@@ -299,14 +321,51 @@ struct RigidWorld::Impl {
   void restore_joints(const std::vector<JointRecord>& joints);
   void restore_blocks(const std::vector<BlockRecord>& blocks);
   std::vector<char> wake_for_restore(const std::vector<double>& still);
+  void restore_holds(const StateArchive& a, const std::string& p);
   void restore_meshes(const std::vector<MeshRecord>& meshes, const std::vector<Vec3>& loads,
                       const std::vector<std::uint64_t>& contacts);
   std::size_t restore_manifolds(const std::vector<ManifoldRecord>& saved, const std::vector<btManifoldPoint>& points);
+
+  // A block's inverse mass and world inverse inertia as the solver sees it awake, bit for bit what
+  // Bullet holds for an awake body (setMassProps, updateInertiaTensor); a sleeping body holds zeros.
+  struct SolveMass {
+    double inv_mass = 0.0;
+    btMatrix3x3 inv_inertia_world;
+  };
+  btVector3 local_inertia(const BlockSlot& s) const {
+    btVector3 in(0, 0, 0);
+    s.shape->calculateLocalInertia(s.mass, in);
+    return in;
+  }
+  SolveMass solve_mass(const btRigidBody& b) const {
+    SolveMass sm;
+    if (b.getInvMass() > 0.0 || b.getUserIndex2() == kMeshTag) {
+      sm.inv_mass = b.getInvMass();
+      sm.inv_inertia_world = b.getInvInertiaTensorWorld();
+      return sm;
+    }
+    const BlockSlot& s = blocks[static_cast<std::size_t>(b.getUserIndex())];
+    sm.inv_inertia_world.setValue(0, 0, 0, 0, 0, 0, 0, 0, 0);
+    if (!(s.mass > 0.0)) return sm;
+    sm.inv_mass = 1.0 / s.mass;
+    const btVector3 in = local_inertia(s);
+    const btVector3 inv(in.x() != 0.0 ? 1.0 / in.x() : 0.0, in.y() != 0.0 ? 1.0 / in.y() : 0.0,
+                        in.z() != 0.0 ? 1.0 / in.z() : 0.0);
+    const btMatrix3x3& basis = b.getWorldTransform().getBasis();
+    sm.inv_inertia_world = basis.scaled(inv) * basis.transpose();
+    return sm;
+  }
 
   void put_to_sleep(BlockSlot& s) {
     btRigidBody& b = *s.body;
     b.setLinearVelocity(btVector3(0, 0, 0));
     b.setAngularVelocity(btVector3(0, 0, 0));
+    // Immovable in the solve (a fixed solver body: Bullet takes a body without inverse mass as one)
+    // until it wakes: an awake block resting on it is held, and its steady load is the hold
+    // reference (check_sleepers) against which an impact is told apart.
+    b.setMassProps(0.0, btVector3(0, 0, 0));
+    b.updateInertiaTensor();
+    mark_hold_fresh(slot_of(s));
     b.setCollisionFlags(b.getCollisionFlags() | btCollisionObject::CF_STATIC_OBJECT);
     b.forceActivationState(ISLAND_SLEEPING);
     world->updateSingleAabb(&b);  // a static box at its pose (a restored world computes the same)
@@ -320,6 +379,9 @@ struct RigidWorld::Impl {
     s.still = 0.0;
     if (!s.asleep) return;
     btRigidBody& b = *s.body;
+    b.setMassProps(s.mass, local_inertia(s));  // the bits it was built with
+    b.updateInertiaTensor();
+    b.setGravity(world->getGravity());          // as addRigidBody set it (g / inverse mass)
     b.setCollisionFlags(b.getCollisionFlags() & ~btCollisionObject::CF_STATIC_OBJECT);
     b.forceActivationState(DISABLE_DEACTIVATION);
     b.getBroadphaseHandle()->m_collisionFilterGroup &= ~kSleepingProxyBit;
@@ -338,35 +400,128 @@ struct RigidWorld::Impl {
       if (c->isEnabled()) aj.push_back(c);
     }
   }
-  // After a solve: the sleeping blocks it took (a contact or joint with an awake block). Bullet's
-  // solver treats them as bodies of finite mass (the static flag does not make a fixed solver body
-  // of a body with an inverse mass) and writes a velocity back, and with split impulse a pose. A
-  // block the solve set moving (faster than `speed`, or its rim) wakes with that velocity: an
-  // impact passes its momentum on, as if the block had been awake. Any other gets its sleeping pose
-  // back and zero velocity: it stays where it slept, so an awake block pressing on it steadily is
-  // held (to within one sub-step's give, F h / m). No other sleeping body is written: integration
-  // skips static bodies, and the solver writes back only its own.
-  void settle_sleepers() {
-    auto settle = [&](const btCollisionObject* o) {
+  // After each solve (CanonicalWorld::after_solve): the sleeping blocks it took (a contact or a
+  // joint with an awake block or a mesh). A sleeping block is immovable in the solve, so what the
+  // solve gives it is the load that holds it; a steady load is held. The first solve after it fell
+  // asleep (or after a block it touches did) gives its reference. When the load departs from the
+  // reference by more than the block, free, would take in one solve to move faster than `speed`
+  // (|dJ| / m, or its rim |I^-1 dL| |h|), something hit or pulled it: it wakes, and the sub-step's
+  // solve is done again from the state before it with the block awake (returns true), so that an
+  // impact passes its momentum on as with every block awake, also along a chain of blocks woken
+  // one after the other within the sub-step.
+  bool check_sleepers() {
+    if (asleep_count == 0 && hold_fresh_list.empty() && touched_before.empty()) return false;
+    const double h = def.dt;
+    touched.clear();
+    auto take = [&](const btCollisionObject* o, const Vec3& j, const Vec3& at) {
       if (o->getUserIndex2() == kMeshTag) return;
-      BlockSlot& s = blocks[static_cast<std::size_t>(o->getUserIndex())];
-      if (!s.asleep) return;
-      if (block_moving(s)) {
-        wake(s);
-        return;
+      const auto k = static_cast<std::size_t>(o->getUserIndex());
+      if (!(state[k] & kAsleep)) return;
+      if (!solve_seen[k]) {
+        solve_seen[k] = 1;
+        touched.push_back(static_cast<std::uint32_t>(k));
       }
-      btRigidBody& b = *s.body;
-      b.setLinearVelocity(btVector3(0, 0, 0));
-      b.setAngularVelocity(btVector3(0, 0, 0));
-      b.setWorldTransform(s.sleep_pose);
+      solve_j[k] += j;
+      solve_l[k] += (at - sleep_centre[k]).cross(j);
     };
     for (const btPersistentManifold* man : world->solved_manifolds()) {
-      settle(man->getBody0());
-      settle(man->getBody1());
+      const btCollisionObject* b0 = man->getBody0();
+      const btCollisionObject* b1 = man->getBody1();
+      const bool s0 = is_block(b0) && (state[static_cast<std::size_t>(b0->getUserIndex())] & kAsleep);
+      const bool s1 = is_block(b1) && (state[static_cast<std::size_t>(b1->getUserIndex())] & kAsleep);
+      if (!s0 && !s1) continue;
+      for (int c = 0; c < man->getNumContacts(); ++c) {
+        const btManifoldPoint& p = man->getContactPoint(c);
+        const Vec3 j = from_bt(p.m_normalWorldOnB * p.m_appliedImpulse +
+                               p.m_lateralFrictionDir1 * p.m_appliedImpulseLateral1 +
+                               p.m_lateralFrictionDir2 * p.m_appliedImpulseLateral2);  // on body 0
+        if (s0) take(b0, j, from_bt(p.getPositionWorldOnA()));
+        if (s1) take(b1, -j, from_bt(p.getPositionWorldOnB()));
+      }
     }
     for (const btTypedConstraint* c : world->awake_joints) {
-      settle(&c->getRigidBodyA());
-      settle(&c->getRigidBodyB());
+      const btJointFeedback* fb = c->getJointFeedback();
+      if (!fb) continue;
+      const btRigidBody& A = c->getRigidBodyA();
+      const btRigidBody& B = c->getRigidBodyB();
+      // (the feedback's torque is about the body's centre: taken at the centre)
+      if (is_block(&A) && (state[static_cast<std::size_t>(A.getUserIndex())] & kAsleep)) {
+        const auto k = static_cast<std::size_t>(A.getUserIndex());
+        take(&A, from_bt(fb->m_appliedForceBodyA) * h, sleep_centre[k]);
+        solve_l[k] += from_bt(fb->m_appliedTorqueBodyA) * h;
+      }
+      if (is_block(&B) && (state[static_cast<std::size_t>(B.getUserIndex())] & kAsleep)) {
+        const auto k = static_cast<std::size_t>(B.getUserIndex());
+        take(&B, from_bt(fb->m_appliedForceBodyB) * h, sleep_centre[k]);
+        solve_l[k] += from_bt(fb->m_appliedTorqueBodyB) * h;
+      }
+    }
+    // The test: every sleeper the solve took, and those the last sub-step's solve took (a load
+    // that went away), against its reference; not those whose reference is taken now.
+    to_wake.clear();
+    const double v = def.far_sleep.speed;
+    auto test = [&](std::uint32_t k) {
+      if (!(state[k] & kAsleep) || hold_fresh[k]) return;
+      const BlockSlot& s = blocks[k];
+      const SolveMass sm = solve_mass(*s.body);
+      const Vec3 dj = solve_j[k] - hold_j[k], dl = solve_l[k] - hold_l[k];
+      const Vec3 dw = from_bt(sm.inv_inertia_world * to_bt(dl));
+      if (dj.squaredNorm() * sm.inv_mass * sm.inv_mass > v * v || dw.squaredNorm() * s.half.squaredNorm() > v * v)
+        to_wake.push_back(k);
+    };
+    for (const std::uint32_t k : touched) test(k);
+    for (const std::uint32_t k : touched_before)
+      if (!solve_seen[k]) test(k);
+    std::sort(to_wake.begin(), to_wake.end());
+    to_wake.erase(std::unique(to_wake.begin(), to_wake.end()), to_wake.end());
+    for (const std::uint32_t k : touched) {  // (solve_seen marks only `touched`)
+      if (!to_wake.empty()) {
+        solve_j[k].setZero();
+        solve_l[k].setZero();
+        solve_seen[k] = 0;
+      }
+    }
+    if (!to_wake.empty()) {
+      for (const std::uint32_t k : to_wake) {
+        wake(blocks[k]);
+        world->stepped.push_back(blocks[k].body.get());
+      }
+      sleepers_woken_by_solve += to_wake.size();
+      collect_awake_joints();  // the woken blocks' joints to sleeping ones are solved now
+      return true;
+    }
+    // The sub-step's last solve: references taken, the sleepers it took kept for the next one.
+    for (const std::uint32_t k : hold_fresh_list) {
+      if (state[k] & kAsleep) {
+        hold_j[k] = solve_j[k];
+        hold_l[k] = solve_l[k];
+      }
+      hold_fresh[k] = 0;
+    }
+    hold_fresh_list.clear();
+    touched_before.clear();
+    for (const std::uint32_t k : touched) {
+      touched_before.push_back(k);
+      solve_j[k].setZero();
+      solve_l[k].setZero();
+      solve_seen[k] = 0;
+    }
+    return false;
+  }
+  // A block fell asleep: its contacts and joints with sleeping blocks are no longer solved, so those
+  // blocks' references are taken again at the next solve (check_sleepers).
+  void fresh_neighbours(BlockSlot& s) {
+    btRigidBody& b = *s.body;
+    for (const btBroadphaseProxy* q : pair_index.partners(b.getBroadphaseHandle())) {
+      const auto* o = static_cast<const btCollisionObject*>(q->m_clientObject);
+      if (is_block(o) && (state[static_cast<std::size_t>(o->getUserIndex())] & kAsleep))
+        mark_hold_fresh(static_cast<std::size_t>(o->getUserIndex()));
+    }
+    for (int i = 0; i < b.getNumConstraintRefs(); ++i) {
+      const btTypedConstraint* c = b.getConstraintRef(i);
+      const btRigidBody& o = &c->getRigidBodyA() == &b ? c->getRigidBodyB() : c->getRigidBodyA();
+      if (is_block(&o) && (state[static_cast<std::size_t>(o.getUserIndex())] & kAsleep))
+        mark_hold_fresh(static_cast<std::size_t>(o.getUserIndex()));
     }
   }
   bool block_moving(const BlockSlot& s) const {
@@ -400,9 +555,12 @@ struct RigidWorld::Impl {
       // (a sleeping block's slot is not read: its centre and flags are kept beside it)
       const bool asleep = st & kAsleep;
       if (!asleep) moving[k] = block_moving(blocks[k]);
-      if ((st & kLoaded) ||
-          in_wake_zone(asleep ? sleep_centre[k] : from_bt(blocks[k].body->getWorldTransform().getOrigin())))
+      // (2: awake, but not a seed of the hops below: a block the caller loads that does not move;
+      // its load reaches a sleeping neighbour through the solve, check_sleepers)
+      if (in_wake_zone(asleep ? sleep_centre[k] : from_bt(blocks[k].body->getWorldTransform().getOrigin())))
         woken[k] = 1;
+      else if (st & kLoaded)
+        woken[k] = def.far_sleep.loads_wake_neighbours ? 1 : 2;
     }
     // Every block within wake_hops contacts or joints of a moving block (or of one the caller loads
     // now) is woken, or kept from falling asleep: the solver carries an impulse a few blocks per
@@ -412,7 +570,7 @@ struct RigidWorld::Impl {
     std::vector<std::uint32_t>& next = bfs_b;
     front.clear();
     for (std::size_t k = 0; k < n; ++k)
-      if (moving[k] || woken[k]) front.push_back(static_cast<std::uint32_t>(k));
+      if (moving[k] || woken[k] == 1) front.push_back(static_cast<std::uint32_t>(k));
     std::vector<char>& seen = moving_seen;
     seen.assign(n, 0);
     for (const std::uint32_t k : front) seen[k] = 1;
@@ -466,7 +624,10 @@ struct RigidWorld::Impl {
       } else if (!(state[k] & kAsleep)) {
         BlockSlot& s = blocks[k];
         s.still += h;
-        if (s.still >= def.far_sleep.still_time) put_to_sleep(s);
+        if (s.still >= def.far_sleep.still_time) {
+          put_to_sleep(s);
+          fresh_neighbours(s);
+        }
       }
     }
   }
@@ -566,6 +727,8 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
     m.dispatcher->setNearCallback(&far_sleep_near_callback);
     m.broadphase->getOverlappingPairCache()->setInternalGhostPairCallback(&m.pair_index);
     m.world->pair_index = &m.pair_index;
+    Impl* impl = &m;
+    m.world->after_solve = [impl] { return impl->check_sleepers(); };
   }
   if (def.fixed_friction_directions)
     m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |
@@ -603,6 +766,12 @@ BlockId RigidWorld::add_block(const BlockDef& d) {
     m.state.push_back(0);
     m.gen.push_back(0);
     m.sleep_centre.emplace_back(Vec3::Zero());
+    m.hold_j.emplace_back(Vec3::Zero());
+    m.hold_l.emplace_back(Vec3::Zero());
+    m.hold_fresh.push_back(0);
+    m.solve_j.emplace_back(Vec3::Zero());
+    m.solve_l.emplace_back(Vec3::Zero());
+    m.solve_seen.push_back(0);
   }
   BlockSlot& s = m.blocks[idx];
   s.alive = true;
@@ -742,14 +911,17 @@ void RigidWorld::substep() {
     for (const auto& mp : m.meshes) stepped.push_back(mp->body.get());
   }
   // maxSubSteps = 0: exactly one internal step of h; forces are cleared afterwards.
+  m.world->check_after_solve =
+      m.world->managed_sleep && (m.asleep_count > 0 || !m.touched_before.empty() || !m.hold_fresh_list.empty());
   m.world->stepSimulation(h, 0, h);
-  if (m.world->managed_sleep) m.settle_sleepers();
   m.world->awake_joints.clear();  // check_joints below may drop some of them
   m.check_joints();
   m.tally_mesh_loads(h);
   m.time += h;
   ++m.steps;
 }
+
+std::size_t RigidWorld::sleepers_woken_by_solve() const { return impl_->sleepers_woken_by_solve; }
 
 double RigidWorld::time() const { return impl_->time; }
 void RigidWorld::reset_clock() {
@@ -1304,6 +1476,12 @@ void RigidWorld::save_state(StateArchive& a, const std::string& p) const {
     std::vector<double> still(m.blocks.size(), 0.0);
     for (std::size_t k = 0; k < m.blocks.size(); ++k) still[k] = m.blocks[k].still;
     a.put(p + "sleep_still", still);
+    // The hold references (check_sleepers) and the sleepers the last solve took.
+    a.put(p + "sleep_hold_j", m.hold_j);
+    a.put(p + "sleep_hold_l", m.hold_l);
+    std::vector<std::uint8_t> fresh(m.hold_fresh.begin(), m.hold_fresh.end());
+    a.put(p + "sleep_hold_fresh", fresh);
+    a.put(p + "sleep_touched", m.touched_before);
   }
   a.put_value(p + "time", m.time);
   a.put_value(p + "steps", m.steps);
@@ -1366,6 +1544,28 @@ std::vector<char> RigidWorld::Impl::wake_for_restore(const std::vector<double>& 
     s.still = still[k];
   }
   return was_asleep;
+}
+
+/// Far sleep: the hold references as saved (a checkpoint without them, older than check_sleepers:
+/// every sleeping block takes its reference at the first solve after the restart).
+void RigidWorld::Impl::restore_holds(const StateArchive& a, const std::string& p) {
+  for (const std::uint32_t k : hold_fresh_list) hold_fresh[k] = 0;
+  hold_fresh_list.clear();
+  touched_before.clear();
+  if (!a.has(p + "sleep_hold_j")) {
+    for (std::size_t k = 0; k < blocks.size(); ++k)
+      if (state[k] & kAsleep) mark_hold_fresh(k);
+    return;
+  }
+  const auto j = a.get<Vec3>(p + "sleep_hold_j"), l = a.get<Vec3>(p + "sleep_hold_l");
+  const auto fresh = a.get<std::uint8_t>(p + "sleep_hold_fresh");
+  if (j.size() != blocks.size() || l.size() != blocks.size() || fresh.size() != blocks.size())
+    throw std::runtime_error("rigid world checkpoint: far-sleep hold references truncated");
+  hold_j = j;
+  hold_l = l;
+  for (std::size_t k = 0; k < blocks.size(); ++k)
+    if (fresh[k]) mark_hold_fresh(k);
+  touched_before = a.get<std::uint32_t>(p + "sleep_touched");
 }
 
 void RigidWorld::Impl::restore_meshes(const std::vector<MeshRecord>& saved, const std::vector<Vec3>& loads,
@@ -1458,6 +1658,7 @@ std::size_t RigidWorld::load_state(const StateArchive& a, const std::string& p) 
       m.put_to_sleep(m.blocks[k]);  // (velocities: zero, as saved)
       m.blocks[k].still = still;
     }
+  if (m.def.far_sleep.enabled) m.restore_holds(a, p);
   return lost;
 }
 

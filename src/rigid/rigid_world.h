@@ -141,6 +141,12 @@ struct RigidWorldDef {
     /// Blocks start asleep (as if still for still_time already) unless the rule wakes them at the
     /// first sub-step: for a ridge at rest as generated, whose far part should not be stepped at all.
     bool start_asleep = false;
+    /// A block the caller loads (the particles) is awake; with this it also seeds the wake_hops
+    /// search as a moving block does. Off: only when it moves; a load it passes on to a sleeping
+    /// neighbour reaches it through the solve (a sleeping block is held against its steady load and
+    /// wakes when the load changes, docs/rigid.md "Far sleep"), so the sheet's steady loads on a
+    /// ridge at rest keep only the blocks they touch awake.
+    bool loads_wake_neighbours = false;
   } far_sleep;
 };
 
@@ -259,6 +265,9 @@ class RigidWorld {
   std::size_t awake_count() const;
   /// Awake dynamic blocks moving by the far-sleep rule (|v| or |w| |h| above far_sleep.speed).
   std::size_t moving_count() const;
+  /// Far sleep: sleeping blocks woken by a change of the load a solve gave them (a hit or a pull;
+  /// each made the world solve its sub-step again), since the world was made.
+  std::size_t sleepers_woken_by_solve() const;
 
   /// Sum of 1/2 m v^2 + 1/2 w.I w over dynamic blocks, J.
   double kinetic_energy() const;

@@ -50,7 +50,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
         "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep", "lattice"}},
       {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time", "lattice_damping",
                          "hold_freeze_bonds"}},
-      {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops"}},
+      {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops", "loads_wake_neighbours"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
   };
@@ -564,6 +564,7 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
     b.far_sleep_start_asleep = f.boolean("start_asleep", b.far_sleep_start_asleep);
     b.far_sleep_wake_hops = f.integer<int>("wake_hops", b.far_sleep_wake_hops, {0.0, 1000.0}, "",
                                            "blocks this many contacts or joints from a moving one are woken, e.g. 4");
+    b.far_sleep_loads_wake_neighbours = f.boolean("loads_wake_neighbours", b.far_sleep_loads_wake_neighbours);
   }
 }
 

@@ -227,6 +227,7 @@ struct BlocksDef {
   double far_sleep_wake_distance = 2.0, far_sleep_speed = 0.01, far_sleep_still_time = 0.5;
   bool far_sleep_start_asleep = false;
   int far_sleep_wake_hops = 4;
+  bool far_sleep_loads_wake_neighbours = false;
 };
 
 struct Scene {
