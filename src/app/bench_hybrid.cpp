@@ -167,6 +167,7 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   double awake_sum = 0.0, moving_sum = 0.0;
   std::size_t awake_max = 0, awake_samples = 0;
   std::uint64_t rigid_before = hy.report().rigid_steps;
+  const std::size_t woken0 = world.sleepers_woken_by_solve(), repeated0 = world.solves_repeated();
   const auto t1 = Clock::now();
   for (std::uint64_t k = 0; k < steps; ++k) {
     sim.step();
@@ -237,6 +238,9 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   j["awake_blocks_max"] = awake_max;
   j["moving_blocks_mean"] = awake_samples ? moving_sum / static_cast<double>(awake_samples) : 0.0;
   j["conversions"] = r.conversions - r0.conversions;
+  // Far sleep: sleeping blocks a change of their load woke, and the sub-step solves done again for them.
+  j["sleepers_woken_by_solve"] = world.sleepers_woken_by_solve() - woken0;
+  j["solves_repeated"] = world.solves_repeated() - repeated0;
   j["setup_s"] = setup;
   j["peak_rss_mb"] = comm.max(u.ru_maxrss / 1024.0);
   j["ranks"] = comm.size();

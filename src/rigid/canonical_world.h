@@ -302,7 +302,13 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
   /// `stepped`, its joints to `awake_joints`); the solve is then done again from the state before
   /// it -- the stepped bodies' velocities and poses, the solved contact points' impulses and
   /// friction directions -- with those bodies awake, and they are integrated with the others.
-  std::function<bool()> after_solve;
+  /// The argument: whether the solve may be done again (false after max_repeats repeats: the owner
+  /// then wakes what it would have woken without a repeat).
+  std::function<bool(bool)> after_solve;
+  /// Repeats of one step's solve at most: each costs a solve of every stepped body, and each wakes
+  /// the sleeping blocks the last one stopped (a chain of sleeping blocks crossed in one step needs
+  /// one per block).
+  int max_repeats = 16;
   std::size_t repeated_solves = 0;  ///< solves done again (a count, for tests and benches)
   /// With managed_sleep: set by the owner before each step, false when no block sleeps and nothing
   /// is left to check (the solve is then neither saved nor checked).
@@ -312,7 +318,9 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
     if (!managed_sleep || !after_solve || !check_after_solve) return solve_once(info, false);
     first_round_ = true;
     solve_once(info, true);
-    for (std::size_t n = stepped.size(); after_solve(); n = stepped.size()) {
+    int repeats = 0;
+    for (std::size_t n = stepped.size(); after_solve(repeats < max_repeats); n = stepped.size()) {
+      ++repeats;
       ++repeated_solves;
       // The woken bodies were fixed in the solve (not written): their state now is the one before it.
       for (std::size_t i = n; i < stepped.size(); ++i)

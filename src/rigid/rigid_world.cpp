@@ -409,7 +409,7 @@ struct RigidWorld::Impl {
   // solve is done again from the state before it with the block awake (returns true), so that an
   // impact passes its momentum on as with every block awake, also along a chain of blocks woken
   // one after the other within the sub-step.
-  bool check_sleepers() {
+  bool check_sleepers(bool may_repeat) {
     if (asleep_count == 0 && hold_fresh_list.empty() && touched_before.empty()) return false;
     const double h = def.dt;
     touched.clear();
@@ -474,22 +474,26 @@ struct RigidWorld::Impl {
       if (!solve_seen[k]) test(k);
     std::sort(to_wake.begin(), to_wake.end());
     to_wake.erase(std::unique(to_wake.begin(), to_wake.end()), to_wake.end());
-    for (const std::uint32_t k : touched) {  // (solve_seen marks only `touched`)
-      if (!to_wake.empty()) {
+    if (!to_wake.empty() && may_repeat) {
+      for (const std::uint32_t k : touched) {  // (solve_seen marks only `touched`)
         solve_j[k].setZero();
         solve_l[k].setZero();
         solve_seen[k] = 0;
       }
-    }
-    if (!to_wake.empty()) {
+      sleepers_woken_by_solve += to_wake.size();
       for (const std::uint32_t k : to_wake) {
         wake(blocks[k]);
         world->stepped.push_back(blocks[k].body.get());
       }
-      sleepers_woken_by_solve += to_wake.size();
       collect_awake_joints();  // the woken blocks' joints to sleeping ones are solved now
       return true;
     }
+    // No more repeats this sub-step (CanonicalWorld::max_repeats): woken without one, they stopped
+    // the impulse in this sub-step as immovable blocks (the rule's error (1), docs/rigid.md).
+    for (const std::uint32_t k : to_wake) {
+      wake(blocks[k]);
+    }
+    sleepers_woken_by_solve += to_wake.size();
     // The sub-step's last solve: references taken, the sleepers it took kept for the next one.
     for (const std::uint32_t k : hold_fresh_list) {
       if (state[k] & kAsleep) {
@@ -728,7 +732,7 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
     m.broadphase->getOverlappingPairCache()->setInternalGhostPairCallback(&m.pair_index);
     m.world->pair_index = &m.pair_index;
     Impl* impl = &m;
-    m.world->after_solve = [impl] { return impl->check_sleepers(); };
+    m.world->after_solve = [impl](bool may_repeat) { return impl->check_sleepers(may_repeat); };
   }
   if (def.fixed_friction_directions)
     m.world->getSolverInfo().m_solverMode |= SOLVER_USE_2_FRICTION_DIRECTIONS |
@@ -922,6 +926,7 @@ void RigidWorld::substep() {
 }
 
 std::size_t RigidWorld::sleepers_woken_by_solve() const { return impl_->sleepers_woken_by_solve; }
+std::size_t RigidWorld::solves_repeated() const { return impl_->world->repeated_solves; }
 
 double RigidWorld::time() const { return impl_->time; }
 void RigidWorld::reset_clock() {

@@ -268,6 +268,8 @@ class RigidWorld {
   /// Far sleep: sleeping blocks woken by a change of the load a solve gave them (a hit or a pull;
   /// each made the world solve its sub-step again), since the world was made.
   std::size_t sleepers_woken_by_solve() const;
+  /// Far sleep: sub-step solves done again because a solve woke sleeping blocks.
+  std::size_t solves_repeated() const;
 
   /// Sum of 1/2 m v^2 + 1/2 w.I w over dynamic blocks, J.
   double kinetic_energy() const;
