@@ -83,6 +83,12 @@ void print_blocks(std::ostream& out, const sim::Simulation& sim, const sim::RunR
       << " particles (" << r.bonds_created << " bonds, " << r.sites_dropped << " overlapping sites dropped); peak "
       << r.peak_particles << " particles; " << r.rigid_steps << " rigid steps of " << sci(r.rigid_dt, 4)
       << " s; " << h.world()->broken_joint_count() << " freeze joints broken\n";
+  if (sim.blocks().def.world.far_sleep.enabled) {
+    const rigid::RigidWorld& w = *h.world();
+    out << "  far sleep: " << w.awake_count() << " blocks awake at the end; " << w.sleepers_woken_by_solve()
+        << " sleeping blocks woken by a change of their load (" << w.solves_repeated()
+        << " sub-step solves done again; counts since this process started)\n";
+  }
   out << "  block-particle freeze bonds: " << r.ice_bonds_created << " at the start, " << r.joints_to_bonds
       << " made from joints of converted blocks, " << r.block_bonds_handed_over
       << " handed over to particle bonds at conversions (" << r.block_bonds_unmatched
