@@ -217,10 +217,7 @@ class CanonicalWorld final : public btDiscreteDynamicsWorld {
       nonstatic_order_stale_ = false;
     }
     // The array Bullet's passes and solveConstraints walk: the stepped bodies in its own order.
-    std::sort(stepped.begin(), stepped.end(),
-              [](const btRigidBody* a, const btRigidBody* b) { return a->getUserIndex3() < b->getUserIndex3(); });
-    m_nonStaticRigidBodies.resize(static_cast<int>(stepped.size()));
-    for (std::size_t i = 0; i < stepped.size(); ++i) m_nonStaticRigidBodies[static_cast<int>(i)] = stepped[i];
+    restep_bodies();
     // updateAabbs and saveKinematicState walk the collision-object array: the same bodies in its order.
     by_world_index_.assign(stepped.begin(), stepped.end());
     std::sort(by_world_index_.begin(), by_world_index_.end(), [](const btRigidBody* a, const btRigidBody* b) {
