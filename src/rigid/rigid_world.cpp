@@ -401,7 +401,8 @@ struct RigidWorld::Impl {
     }
   }
   // After each solve (CanonicalWorld::after_solve): the sleeping blocks it took (a contact or a
-  // joint with an awake block or a mesh). A sleeping block is immovable in the solve, so what the
+  // joint with an awake block; a mesh's contact with a sleeping block is not solved: both have no
+  // mass there, and wake_distance keeps meshes away from sleeping blocks, error (3)). A sleeping block is immovable in the solve, so what the
   // solve gives it is the load that holds it; a steady load is held. The first solve after it fell
   // asleep (or after a block it touches did) gives its reference. When the load departs from the
   // reference by more than the block, free, would take in one solve to move faster than `speed`
@@ -473,6 +474,7 @@ struct RigidWorld::Impl {
         wake(blocks[k]);
         world->stepped.push_back(blocks[k].body.get());
       }
+      for (const std::uint32_t k : to_wake) collide_with_inactive(blocks[k]);
       collect_awake_joints();  // the woken blocks' joints to sleeping ones are solved now
       return true;
     }
@@ -497,6 +499,21 @@ struct RigidWorld::Impl {
       solve_seen[k] = 0;
     }
     return false;
+  }
+  // A block woken by a solve (check_sleepers), before the repeat: its pairs with inactive bodies
+  // (sleeping blocks, and fixed ones if inactive) were not collided this step -- never, for blocks
+  // that started asleep (start_asleep) -- so their contacts would be missing or stale in the
+  // repeated solve. They are collided now, as this step's collision pass would have done had the
+  // block been awake (its pose is the one it slept at; the repeat saves the new points first).
+  void collide_with_inactive(BlockSlot& s) {
+    btBroadphaseProxy* p = s.body->getBroadphaseHandle();
+    btOverlappingPairCache* cache = broadphase->getOverlappingPairCache();
+    const btDispatcherInfo& info = world->getDispatchInfo();
+    for (btBroadphaseProxy* q : pair_index.partners(p)) {
+      const auto* o = static_cast<const btCollisionObject*>(q->m_clientObject);
+      if (!is_block(o) || o->isActive()) continue;  // an active partner was collided this step
+      if (btBroadphasePair* pair = cache->findPair(p, q)) dispatcher->getNearCallback()(*pair, *dispatcher, info);
+    }
   }
   // A block fell asleep: its contacts and joints with sleeping blocks are no longer solved, so those
   // blocks' references are taken again at the next solve (check_sleepers).
@@ -1553,6 +1570,8 @@ void RigidWorld::Impl::restore_holds(const StateArchive& a, const std::string& p
   for (std::size_t k = 0; k < blocks.size(); ++k)
     if (fresh[k]) mark_hold_fresh(k);
   touched_before = a.get<std::uint32_t>(p + "sleep_touched");
+  for (const std::uint32_t k : touched_before)
+    if (k >= blocks.size()) throw std::runtime_error("rigid world checkpoint: far-sleep block index out of range");
 }
 
 void RigidWorld::Impl::restore_meshes(const std::vector<MeshRecord>& saved, const std::vector<Vec3>& loads,

@@ -266,7 +266,8 @@ class RigidWorld {
   /// Awake dynamic blocks moving by the far-sleep rule (|v| or |w| |h| above far_sleep.speed).
   std::size_t moving_count() const;
   /// Far sleep: sleeping blocks woken by a change of the load a solve gave them (a hit or a pull;
-  /// each made the world solve its sub-step again), since the world was made.
+  /// each made the world solve its sub-step again, unless the sub-step's repeats were used up),
+  /// since the world was made.
   std::size_t sleepers_woken_by_solve() const;
   /// Far sleep: sub-step solves done again because a solve woke sleeping blocks.
   std::size_t solves_repeated() const;
