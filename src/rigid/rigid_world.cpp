@@ -402,8 +402,9 @@ struct RigidWorld::Impl {
   }
   // After each solve (CanonicalWorld::after_solve): the sleeping blocks it took (a contact or a
   // joint with an awake block; a mesh's contact with a sleeping block is not solved: both have no
-  // mass there, and wake_distance keeps meshes away from sleeping blocks, error (3)). A sleeping block is immovable in the solve, so what the
-  // solve gives it is the load that holds it; a steady load is held. The first solve after it fell
+  // mass there, and wake_distance keeps meshes away from sleeping blocks, error (3)). A sleeping
+  // block is immovable in the solve, so what the solve gives it is the load that holds it; a
+  // steady load is held. The first solve after it fell
   // asleep (or after a block it touches did) gives its reference. When the load departs from the
   // reference by more than the block, free, would take in one solve to move faster than `speed`
   // (|dJ| / m > speed), something hit or pulled it: it wakes, and the sub-step's
@@ -464,41 +465,31 @@ struct RigidWorld::Impl {
       if (!solve_seen[k]) test(k);
     std::sort(to_wake.begin(), to_wake.end());
     to_wake.erase(std::unique(to_wake.begin(), to_wake.end()), to_wake.end());
-    if (!to_wake.empty() && may_repeat) {
-      for (const std::uint32_t k : touched) {  // (solve_seen marks only `touched`)
-        solve_j[k].setZero();
-        solve_seen[k] = 0;
-      }
-      sleepers_woken_by_solve += to_wake.size();
-      for (const std::uint32_t k : to_wake) {
-        wake(blocks[k]);
-        world->stepped.push_back(blocks[k].body.get());
-      }
-      for (const std::uint32_t k : to_wake) collide_with_inactive(blocks[k]);
-      collect_awake_joints();  // the woken blocks' joints to sleeping ones are solved now
-      return true;
-    }
-    // No more repeats this sub-step (CanonicalWorld::max_repeats): woken without one, they stopped
-    // the impulse in this sub-step as immovable blocks (the rule's error (1), docs/rigid.md).
+    // Without a repeat left (CanonicalWorld::max_repeats) the woken blocks stopped the impulse in
+    // this sub-step as immovable ones (the rule's error (1), docs/rigid.md).
+    const bool repeat = !to_wake.empty() && may_repeat;
+    sleepers_woken_by_solve += to_wake.size();
     for (const std::uint32_t k : to_wake) {
       wake(blocks[k]);
+      if (repeat) world->stepped.push_back(blocks[k].body.get());
     }
-    sleepers_woken_by_solve += to_wake.size();
-    // The sub-step's last solve: references taken, the sleepers it took kept for the next one.
-    for (const std::uint32_t k : hold_fresh_list) {
-      if (state[k] & kAsleep) {
-        hold_j[k] = solve_j[k];
+    if (!repeat) {  // the sub-step's last solve: references taken, the sleepers it took kept
+      for (const std::uint32_t k : hold_fresh_list) {
+        if (state[k] & kAsleep) hold_j[k] = solve_j[k];
+        hold_fresh[k] = 0;
       }
-      hold_fresh[k] = 0;
+      hold_fresh_list.clear();
+      touched_before = touched;
     }
-    hold_fresh_list.clear();
-    touched_before.clear();
-    for (const std::uint32_t k : touched) {
-      touched_before.push_back(k);
+    for (const std::uint32_t k : touched) {  // (solve_seen marks only `touched`)
       solve_j[k].setZero();
       solve_seen[k] = 0;
     }
-    return false;
+    if (repeat) {
+      for (const std::uint32_t k : to_wake) collide_with_inactive(blocks[k]);
+      collect_awake_joints();  // the woken blocks' joints to sleeping ones are solved now
+    }
+    return repeat;
   }
   // A block woken by a solve (check_sleepers), before the repeat: its pairs with inactive bodies
   // (sleeping blocks, and fixed ones if inactive) were not collided this step -- never, for blocks

@@ -160,24 +160,35 @@ std::vector<Vec3> pushed_row(bool on, bool joined, int n, std::vector<bool>* mov
   return x;
 }
 
-TEST(FarSleep, ChainOfContactsWakesInTime) {
+// The row pushed with far sleep against the same row with every floe awake: every floe woke, the
+// push reached the last floe (> 5 cm all awake). Returns the largest position difference and where
+// the last far-sleep floe and the first all-awake floe ended.
+struct RowResult {
+  double worst, last_x, first_awake_x;
+};
+RowResult row_against_awake(const char* what, bool joined, bool start_asleep = false) {
   constexpr int n = 6;
   std::vector<bool> woke;
-  const auto on = pushed_row(true, false, n, &woke);
-  const auto off = pushed_row(false, false, n);
+  const auto on = pushed_row(true, joined, n, &woke, start_asleep);
+  const auto off = pushed_row(false, joined, n);
   double worst = 0.0;
   for (int i = 0; i < n; ++i) {
     EXPECT_TRUE(woke[i]) << "floe " << i << " never woke";
     worst = std::max(worst, (on[i] - off[i]).norm());
   }
-  EXPECT_GT(on.back().x() - off.front().x(), 0.0);
   EXPECT_GT(off.back().x() - (n - 1.0), 0.05);  // the push reached the last floe (moved > 5 cm)
+  std::printf("[ far sleep ] %s: last floe moved %.4f m (far sleep) vs %.4f m; worst difference %.2e m\n", what,
+              on.back().x() - (n - 1.0), off.back().x() - (n - 1.0), worst);
+  return {worst, on.back().x(), off.front().x()};
+}
+
+TEST(FarSleep, ChainOfContactsWakesInTime) {
   // The push crosses the sleeping floes within one sub-step: each stops it as an immovable block,
   // the load it takes departs from the one it holds, it wakes and the sub-step is solved again
   // (check_sleepers), so the row moves as with every floe awake.
-  EXPECT_LT(worst, 1e-12);  // m; measured 1.8e-14 (9.7e-3 when a woken floe was not solved again)
-  std::printf("[ far sleep ] contact chain: last floe moved %.4f m (far sleep) vs %.4f m; worst difference %.2e m\n",
-              on.back().x() - (n - 1.0), off.back().x() - (n - 1.0), worst);
+  const RowResult r = row_against_awake("contact chain", false);
+  EXPECT_GT(r.last_x - r.first_awake_x, 0.0);
+  EXPECT_LT(r.worst, 1e-12);  // m; measured 1.8e-14 (9.7e-3 when a woken floe was not solved again)
 }
 
 TEST(FarSleep, ChainOfContactsStartedAsleepWakesInTime) {
@@ -185,37 +196,15 @@ TEST(FarSleep, ChainOfContactsStartedAsleepWakesInTime) {
   // sleeping floes were never collided, so a floe woken by the solve is collided with its sleeping
   // neighbours before the repeat (collide_with_inactive); without that it has no contact with the
   // next floe in the repeat and the push does not cross the row within the sub-step.
-  constexpr int n = 6;
-  std::vector<bool> woke;
-  const auto on = pushed_row(true, false, n, &woke, true);
-  const auto off = pushed_row(false, false, n);
-  double worst = 0.0;
-  for (int i = 0; i < n; ++i) {
-    EXPECT_TRUE(woke[i]) << "floe " << i << " never woke";
-    worst = std::max(worst, (on[i] - off[i]).norm());
-  }
-  EXPECT_GT(off.back().x() - (n - 1.0), 0.05);
+  const double worst = row_against_awake("contact chain started asleep", false, true).worst;
   EXPECT_LT(worst, 1e-12);  // m; measured 2.3e-14 (5.1e-2 without collide_with_inactive)
-  std::printf("[ far sleep ] contact chain started asleep: last floe moved %.4f m (far sleep) vs %.4f m; worst difference %.2e m\n",
-              on.back().x() - (n - 1.0), off.back().x() - (n - 1.0), worst);
 }
 
 TEST(FarSleep, ChainOfJointsWakesInTime) {
-  constexpr int n = 6;
-  std::vector<bool> woke;
-  const auto on = pushed_row(true, true, n, &woke);
-  const auto off = pushed_row(false, true, n);
-  double worst = 0.0;
-  for (int i = 0; i < n; ++i) {
-    EXPECT_TRUE(woke[i]) << "floe " << i << " never woke";
-    worst = std::max(worst, (on[i] - off[i]).norm());
-  }
-  EXPECT_GT(off.back().x() - (n - 1.0), 0.05);
+  const double worst = row_against_awake("joint chain", true).worst;
   // (1.3e-11 before the woken floes' contacts with sleeping ones were collided again before the
   // repeat, collide_with_inactive: the refreshed points move the result in the last bits)
   EXPECT_LT(worst, 6e-10);  // m; measured 6.0e-11 (1.3e-3 when a woken floe was not solved again)
-  std::printf("[ far sleep ] joint chain: last floe moved %.4f m (far sleep) vs %.4f m; worst difference %.2e m\n",
-              on.back().x() - (n - 1.0), off.back().x() - (n - 1.0), worst);
 }
 
 // An awake floe beside a sleeping one (wake_hops 0: only the solve itself can wake it), the awake
