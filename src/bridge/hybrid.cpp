@@ -335,7 +335,8 @@ void HybridSystem::step() {
   m.coupler.sum_and_apply(engine_.comm(), *world_);
   report_.seconds_bridge += seconds_since(t1);
   const auto t2 = Clock::now();
-  if (m.def.world.far_sleep.enabled && m.def.mode == ConversionMode::Hybrid && m.mesh >= 0) {
+  if (m.def.world.far_sleep.enabled && m.def.world.far_sleep.region_awake && m.def.mode == ConversionMode::Hybrid &&
+      m.mesh >= 0) {
     // Far sleep: blocks that the conversion policy may look at stay awake (their loads are read).
     const ConversionRegion& rg = m.def.region;
     const Vec3 c = world_->mesh_position(m.mesh) + rg.offset;

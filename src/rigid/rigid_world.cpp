@@ -156,6 +156,26 @@ struct RigidWorld::Impl {
   std::vector<char> solve_seen;
   std::vector<std::uint32_t> touched, touched_before, to_wake;
   std::size_t sleepers_woken_by_solve = 0;  // a count, for tests and benches
+  // loads_held: per block slot, the caller's impulse on a sleeping block over this sub-step (linear,
+  // angular; taken from its add_impulse / add_force at the sub-step's start and counted in its load
+  // by check_sleepers), and the slots that have one.
+  std::vector<Vec3> caller_j, caller_l;
+  std::vector<std::uint32_t> caller_loaded;
+  // loads_held: a sleeping block's caller load of this sub-step, taken off the block (a sleeping
+  // block is not integrated, so an impulse left on it would add up over the sub-steps it sleeps).
+  void hold_caller_load(std::size_t k, double h) {
+    BlockSlot& s = blocks[k];
+    if (caller_j.size() < blocks.size()) {
+      caller_j.resize(blocks.size(), Vec3::Zero());
+      caller_l.resize(blocks.size(), Vec3::Zero());
+    }
+    caller_j[k] = s.imp_linear + h * s.ext_force;
+    caller_l[k] = s.imp_angular + h * s.ext_torque;
+    s.imp_linear.setZero();
+    s.imp_angular.setZero();
+    set_loaded(k);
+    caller_loaded.push_back(static_cast<std::uint32_t>(k));
+  }
   void mark_hold_fresh(std::size_t k) {
     if (!hold_fresh[k]) hold_fresh_list.push_back(static_cast<std::uint32_t>(k));
     hold_fresh[k] = 1;
@@ -418,15 +438,16 @@ struct RigidWorld::Impl {
     if (asleep_count == 0 && hold_fresh_list.empty() && touched_before.empty()) return false;
     const double h = def.dt;
     touched.clear();
-    auto take = [&](const btCollisionObject* o, const Vec3& j) {
-      if (o->getUserIndex2() == kMeshTag) return;
-      const auto k = static_cast<std::size_t>(o->getUserIndex());
+    auto take_slot = [&](std::size_t k, const Vec3& j) {
       if (!(state[k] & kAsleep)) return;
       if (!solve_seen[k]) {
         solve_seen[k] = 1;
         touched.push_back(static_cast<std::uint32_t>(k));
       }
       solve_j[k] += j;
+    };
+    auto take = [&](const btCollisionObject* o, const Vec3& j) {
+      if (o->getUserIndex2() != kMeshTag) take_slot(static_cast<std::size_t>(o->getUserIndex()), j);
     };
     for (const btPersistentManifold* man : world->solved_manifolds()) {
       const btCollisionObject* b0 = man->getBody0();
@@ -451,6 +472,7 @@ struct RigidWorld::Impl {
       if (is_block(&A)) take(&A, from_bt(fb->m_appliedForceBodyA) * h);
       if (is_block(&B)) take(&B, from_bt(fb->m_appliedForceBodyB) * h);
     }
+    for (const std::uint32_t k : caller_loaded) take_slot(k, caller_j[k]);  // loads_held
     // The test: every sleeper the solve took, and those the last sub-step's solve took (a load
     // that went away), against its reference; not those whose reference is taken now.
     to_wake.clear();
@@ -458,7 +480,8 @@ struct RigidWorld::Impl {
     auto test = [&](std::uint32_t k) {
       if (!(state[k] & kAsleep) || hold_fresh[k]) return;
       const double m = blocks[k].mass;
-      if ((solve_j[k] - hold_j[k]).squaredNorm() > m * m * v * v) to_wake.push_back(k);
+      const double lim = m * v + (k < allow.size() ? allow[k] : 0.0);
+      if ((solve_j[k] - hold_j[k]).squaredNorm() > lim * lim) to_wake.push_back(k);
     };
     for (const std::uint32_t k : touched) test(k);
     for (const std::uint32_t k : touched_before)
@@ -471,6 +494,14 @@ struct RigidWorld::Impl {
     sleepers_woken_by_solve += to_wake.size();
     for (const std::uint32_t k : to_wake) {
       wake(blocks[k]);
+      allow_neighbours(blocks[k]);
+      if (k < caller_j.size() && (!caller_j[k].isZero(0.0) || !caller_l[k].isZero(0.0))) {
+        // loads_held: the caller's load of this sub-step, as a stepped block takes it (before the solve)
+        blocks[k].body->applyCentralImpulse(to_bt(caller_j[k]));
+        blocks[k].body->applyTorqueImpulse(to_bt(caller_l[k]));
+        caller_j[k].setZero();
+        caller_l[k].setZero();
+      }
       if (repeat) world->stepped.push_back(blocks[k].body.get());
     }
     if (!repeat) {  // the sub-step's last solve: references taken, the sleepers it took kept
@@ -478,6 +509,15 @@ struct RigidWorld::Impl {
         if (state[k] & kAsleep) hold_j[k] = solve_j[k];
         hold_fresh[k] = 0;
       }
+      for (const std::uint32_t k : allow_list) {  // (allow_neighbours: moved by the allowance at most)
+        if ((state[k] & kAsleep) && !hold_fresh[k]) {
+          const Vec3 d = solve_j[k] - hold_j[k];
+          const double n = d.norm();
+          hold_j[k] += n <= allow[k] ? d : (allow[k] / n) * d;
+        }
+        allow[k] = 0.0;
+      }
+      allow_list.clear();
       hold_fresh_list.clear();
       touched_before = touched;
     }
@@ -506,21 +546,57 @@ struct RigidWorld::Impl {
       if (btBroadphasePair* pair = cache->findPair(p, q)) dispatcher->getNearCallback()(*pair, *dispatcher, info);
     }
   }
-  // A block fell asleep: its contacts and joints with sleeping blocks are no longer solved, so those
-  // blocks' references are taken again at the next solve (check_sleepers).
-  void fresh_neighbours(BlockSlot& s) {
+  // The sleeping blocks that s touches (an overlapping pair) or is jointed to, each once or more.
+  template <class F>
+  void for_sleeping_neighbours(BlockSlot& s, F&& f) {
     btRigidBody& b = *s.body;
     for (const btBroadphaseProxy* q : pair_index.partners(b.getBroadphaseHandle())) {
       const auto* o = static_cast<const btCollisionObject*>(q->m_clientObject);
       if (is_block(o) && (state[static_cast<std::size_t>(o->getUserIndex())] & kAsleep))
-        mark_hold_fresh(static_cast<std::size_t>(o->getUserIndex()));
+        f(static_cast<std::size_t>(o->getUserIndex()));
     }
     for (int i = 0; i < b.getNumConstraintRefs(); ++i) {
       const btTypedConstraint* c = b.getConstraintRef(i);
       const btRigidBody& o = &c->getRigidBodyA() == &b ? c->getRigidBodyB() : c->getRigidBodyA();
       if (is_block(&o) && (state[static_cast<std::size_t>(o.getUserIndex())] & kAsleep))
-        mark_hold_fresh(static_cast<std::size_t>(o.getUserIndex()));
+        f(static_cast<std::size_t>(o.getUserIndex()));
     }
+  }
+  // A block fell asleep: its contacts and joints with sleeping blocks are no longer solved, so those
+  // blocks' references are taken again at the next solve (check_sleepers).
+  void fresh_neighbours(BlockSlot& s) {
+    for_sleeping_neighbours(s, [&](std::size_t k) { mark_hold_fresh(k); });
+  }
+  // A sleeping block woke: while both slept, its sleeping neighbours held its weight and buoyancy
+  // unsolved; now the solve hands that static load to them through their contacts and joints with
+  // it, and a neighbour's reference, taken while it was not solved, does not contain it. So each
+  // neighbour may depart from its reference by the woken block's net static load (weight and water
+  // load at rest) times the sub-step, on top of m speed, for the rest of the sub-step, and its
+  // reference moves toward the load of the sub-step's last solve by that much at most
+  // (check_sleepers): what else the woken block passes on (a push, a caller's load) stays a change.
+  // Without it every wake-up woke the neighbours below and above the woken block (docs/rigid.md,
+  // "Far sleep").
+  std::vector<double> allow;
+  std::vector<std::uint32_t> allow_list;
+  void allow_neighbours(BlockSlot& s) {
+    const btTransform& tr = s.body->getWorldTransform();
+    Vec3 f = s.mass * def.gravity;
+    if (def.water) {
+      BoxWaterParams wp;
+      wp.level = def.water_level;
+      wp.density = def.water_density;
+      wp.linear_drag = def.linear_drag;
+      wp.drag_coefficient = def.quadratic_drag_cd;
+      f += box_water_load(wp, -def.gravity.z(), s.half, from_bt(tr.getOrigin()), from_bt(tr.getRotation()),
+                          Vec3::Zero(), Vec3::Zero())
+               .force;
+    }
+    const double a = f.norm() * def.dt;
+    if (allow.size() < blocks.size()) allow.resize(blocks.size(), 0.0);
+    for_sleeping_neighbours(s, [&](std::size_t k) {
+      if (allow[k] == 0.0) allow_list.push_back(static_cast<std::uint32_t>(k));
+      allow[k] += a;
+    });
   }
   bool block_moving(const BlockSlot& s) const {
     const double v = def.far_sleep.speed;
@@ -556,8 +632,8 @@ struct RigidWorld::Impl {
       // (2: awake, but not a seed of the hops below: a block the caller loads that does not move;
       // its load reaches a sleeping neighbour through the solve, check_sleepers)
       if (in_wake_zone(asleep ? sleep_centre[k] : from_bt(blocks[k].body->getWorldTransform().getOrigin())))
-        woken[k] = 1;
-      else if (st & kLoaded)
+        woken[k] = def.far_sleep.zone_wakes_neighbours ? 1 : 2;
+      else if ((st & kLoaded) && !def.far_sleep.loads_held)
         woken[k] = def.far_sleep.loads_wake_neighbours ? 1 : 2;
     }
     // Every block within wake_hops contacts or joints of a moving block (or of one the caller loads
@@ -618,7 +694,9 @@ struct RigidWorld::Impl {
     for (std::size_t k = 0; k < n; ++k) {
       if ((state[k] & (kAlive | kFixed)) != kAlive) continue;
       if (woken[k] || reset[k] || moving[k]) {
+        const bool was_asleep = state[k] & kAsleep;
         wake(blocks[k]);
+        if (was_asleep) allow_neighbours(blocks[k]);
       } else if (!(state[k] & kAsleep)) {
         BlockSlot& s = blocks[k];
         s.still += h;
@@ -871,8 +949,18 @@ void RigidWorld::substep() {
   if (m.def.far_sleep.enabled) m.update_sleep(h);
   auto& stepped = m.world->stepped;  // what Bullet's per-body passes walk under far sleep (CanonicalWorld)
   stepped.clear();
+  for (const std::uint32_t k : m.caller_loaded) {  // loads_held: last sub-step's, applied or not
+    m.caller_j[k].setZero();
+    m.caller_l[k].setZero();
+  }
+  m.caller_loaded.clear();
+  const bool hold_loads = m.def.far_sleep.enabled && m.def.far_sleep.loads_held;
+  constexpr std::uint8_t kHeldLoad = Impl::kAlive | Impl::kAsleep | Impl::kLoaded;  // (not fixed)
   for (std::size_t k = 0; k < m.blocks.size(); ++k) {
-    if (!m.stepped(k)) continue;
+    if (!m.stepped(k)) {
+      if (hold_loads && (m.state[k] & (kHeldLoad | Impl::kFixed)) == kHeldLoad) m.hold_caller_load(k, h);
+      continue;
+    }
     BlockSlot& s = m.blocks[k];
     btRigidBody& b = *s.body;
     if (m.world->managed_sleep) stepped.push_back(&b);

@@ -147,6 +147,22 @@ struct RigidWorldDef {
     /// wakes when the load changes, docs/rigid.md "Far sleep"), so the sheet's steady loads on a
     /// ridge at rest keep only the blocks they touch awake.
     bool loads_wake_neighbours = false;
+    /// A sleeping block the caller loads stays asleep: the caller's impulse over the sub-step
+    /// (add_impulse, add_force x dt) counts in its load beside its contacts' and joints', and it
+    /// wakes when that sum departs from its reference as a contact's load would (check_sleepers:
+    /// |dJ| / m > speed per sub-step); an awake block the caller loads falls asleep when it is still.
+    /// Off: a block the caller loads is awake (the rule above). docs/rigid.md, "Far sleep".
+    bool loads_held = false;
+    /// Read by the hybrid (bridge::HybridSystem), which owns the conversion region: the blocks of the
+    /// region grown by the largest block and wake_distance are kept awake (a wake box), so that the
+    /// conversion policy reads loads the solve gave them this sub-step. Off: those blocks sleep by
+    /// the rule above like any other, and the policy reads a sleeping block's contacts and joints
+    /// with other sleeping blocks as their last solve left them.
+    bool region_awake = true;
+    /// A block in the wake zone of a mesh (or a caller's wake box) also wakes the blocks within
+    /// wake_hops, as a moving block does. Off: it keeps only itself awake until it moves; what the
+    /// mesh pushes into it reaches a sleeping neighbour through the solve (check_sleepers).
+    bool zone_wakes_neighbours = true;
   } far_sleep;
 };
 

@@ -50,7 +50,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
         "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep", "lattice"}},
       {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time", "lattice_damping",
                          "hold_freeze_bonds"}},
-      {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops", "loads_wake_neighbours"}},
+      {"/blocks/far_sleep", {"enabled", "wake_distance", "speed", "still_time", "start_asleep", "wake_hops", "loads_wake_neighbours", "loads_held", "region_awake", "zone_wakes_neighbours"}},
       {"/blocks/list/*", {"half_extents", "position", "orientation", "velocity", "angular_velocity", "fixed"}},
       {"/blocks/region", {"shape", "offset", "radius", "z_min", "z_max", "half_extents"}},
   };
@@ -565,6 +565,9 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
     b.far_sleep_wake_hops = f.integer<int>("wake_hops", b.far_sleep_wake_hops, {0.0, 1000.0}, "",
                                            "blocks this many contacts or joints from a moving one are woken, e.g. 4");
     b.far_sleep_loads_wake_neighbours = f.boolean("loads_wake_neighbours", b.far_sleep_loads_wake_neighbours);
+    b.far_sleep_loads_held = f.boolean("loads_held", b.far_sleep_loads_held);
+    b.far_sleep_region_awake = f.boolean("region_awake", b.far_sleep_region_awake);
+    b.far_sleep_zone_wakes_neighbours = f.boolean("zone_wakes_neighbours", b.far_sleep_zone_wakes_neighbours);
   }
 }
 

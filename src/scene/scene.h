@@ -228,6 +228,7 @@ struct BlocksDef {
   bool far_sleep_start_asleep = false;
   int far_sleep_wake_hops = 4;
   bool far_sleep_loads_wake_neighbours = false;
+  bool far_sleep_loads_held = false, far_sleep_region_awake = true, far_sleep_zone_wakes_neighbours = true;
 };
 
 struct Scene {

@@ -51,6 +51,9 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   w.far_sleep.start_asleep = b.far_sleep_start_asleep;
   w.far_sleep.wake_hops = b.far_sleep_wake_hops;
   w.far_sleep.loads_wake_neighbours = b.far_sleep_loads_wake_neighbours;
+  w.far_sleep.loads_held = b.far_sleep_loads_held;
+  w.far_sleep.region_awake = b.far_sleep_region_awake;
+  w.far_sleep.zone_wakes_neighbours = b.far_sleep_zone_wakes_neighbours;
   // The conversion's flexural limit: the lattice's own strength (calibrated), as ISO is given.
   d.flexural_strength = b.flexural_strength > 0.0                                   ? b.flexural_strength
                         : ci.model == "calibrated" && ci.flexural_strength > 0.0 ? ci.flexural_strength

@@ -136,10 +136,12 @@ TEST(FarSleep, ApproachingStructureWakesBlockInTime) {
 // A row of n touching floes (with freeze joints between neighbours when `joined`), asleep; the first
 // is pushed (an impulse, as the particles give). The motion reaches the last floe through the chain.
 std::vector<Vec3> pushed_row(bool on, bool joined, int n, std::vector<bool>* moved = nullptr,
-                             bool start_asleep = false) {
+                             bool start_asleep = false, int hops = -1) {
   // (Awake for still_time first, as a ridge at rest: the floes' contacts exist when they fall
   // asleep; with start_asleep they never had any: asleep from the first sub-step.)
-  RigidWorld w(sleepy(on, start_asleep));
+  RigidWorldDef d = sleepy(on, start_asleep);
+  if (hops >= 0) d.far_sleep.wake_hops = hops;
+  RigidWorld w(d);
   std::vector<BlockId> ids;
   for (int i = 0; i < n; ++i) ids.push_back(w.add_block(floe(1.0 * i)));
   if (joined)
@@ -166,10 +168,10 @@ std::vector<Vec3> pushed_row(bool on, bool joined, int n, std::vector<bool>* mov
 struct RowResult {
   double worst, last_x, first_awake_x;
 };
-RowResult row_against_awake(const char* what, bool joined, bool start_asleep = false) {
+RowResult row_against_awake(const char* what, bool joined, bool start_asleep = false, int hops = -1) {
   constexpr int n = 6;
   std::vector<bool> woke;
-  const auto on = pushed_row(true, joined, n, &woke, start_asleep);
+  const auto on = pushed_row(true, joined, n, &woke, start_asleep, hops);
   const auto off = pushed_row(false, joined, n);
   double worst = 0.0;
   for (int i = 0; i < n; ++i) {
@@ -205,6 +207,16 @@ TEST(FarSleep, ChainOfJointsWakesInTime) {
   // (1.3e-11 before the woken floes' contacts with sleeping ones were collided again before the
   // repeat, collide_with_inactive: the refreshed points move the result in the last bits)
   EXPECT_LT(worst, 6e-10);  // m; measured 6.0e-11 (1.3e-3 when a woken floe was not solved again)
+}
+
+TEST(FarSleep, ChainsWakeInTimeWithoutHops) {
+  // wake_hops 0 (bench hybrid's setting): no moving block wakes its neighbours ahead of the push;
+  // the solve alone wakes each floe the push reaches, within the sub-step, so the rows move as
+  // with the hops and as with every floe awake.
+  const double contacts = row_against_awake("contact chain, no hops", false, true, 0).worst;
+  const double joints = row_against_awake("joint chain, no hops", true, false, 0).worst;
+  EXPECT_LT(contacts, 1e-12);  // m; measured 2.3e-14, as with 4 hops (7.3e-2 without the repeated solve)
+  EXPECT_LT(joints, 6e-10);    // m; measured 6.0e-11, as with 4 hops (7.2e-2 without the repeated solve)
 }
 
 // An awake floe beside a sleeping one (wake_hops 0: only the solve itself can wake it), the awake
@@ -462,6 +474,90 @@ TEST(FarSleep, CheckpointKeepsTheLoadASleepingBlockHolds) {
   EXPECT_TRUE(same_pose(b.w, b.awake, a.w.position(a.awake), a.w.orientation(a.awake)));
   std::printf("[ far sleep ] growing push: the sleeping floe woke at %.3f s (restored at 1 s: %.3f s)\n",
               static_cast<double>(woke_a) / 240.0, static_cast<double>(woke_b) / 240.0);
+}
+
+// loads_held: a sleeping floe under the caller's force (as the particles load a keel block) holds a
+// steady load asleep, and wakes once the load has changed by m speed / h = 546 kg x 0.01 m/s x 240 /s
+// = 1,310 N: a force of 500 N from 0.05 s on (3.8 mm/s per solve, held), growing by 400 N/s from
+// 1.05 s on, wakes it at 1.05 + (1,310 - 500) / 400 = 3.076 s.
+double held_floe_wakes_at(bool held, bool* still_until_then) {
+  RigidWorldDef d = sleepy(true);
+  d.far_sleep.wake_hops = 0;
+  d.far_sleep.loads_held = held;
+  RigidWorld w(d);
+  const BlockId f = w.add_block(floe(0.0));
+  w.step(0.05);
+  EXPECT_TRUE(w.asleep(f));
+  const Vec3 x0 = w.position(f);
+  const Quat q0 = w.orientation(f);
+  *still_until_then = true;
+  for (long k = 0; k < 4 * 240; ++k) {
+    const double t = static_cast<double>(k) / 240.0;
+    w.clear_external_forces();
+    w.add_force(f, Vec3(500.0 + 400.0 * std::max(0.0, t - 1.0), 0, 0), w.position(f));
+    w.substep();
+    if (!w.asleep(f)) return 0.05 + t;
+    *still_until_then = *still_until_then && same_pose(w, f, x0, q0);
+  }
+  return -1.0;
+}
+
+TEST(FarSleep, LoadsHeldKeepsASteadyCallerLoadAsleepAndWakesOnItsChange) {
+  bool still = false;
+  const double t_held = held_floe_wakes_at(true, &still);
+  EXPECT_NEAR(t_held, 3.076, 2.0 / 240.0);  // s; measured 3.079 (one sub-step)
+  EXPECT_TRUE(still);                        // bit-still while asleep
+  bool still_off = false;
+  const double t_off = held_floe_wakes_at(false, &still_off);
+  EXPECT_NEAR(t_off, 0.05, 1.5 / 240.0);  // without loads_held the load wakes it at once
+  std::printf("[ far sleep ] loads held: the loaded floe woke at %.3f s (3.076 s predicted); without: %.3f s\n",
+              t_held, t_off);
+}
+
+// A block resting on a sleeping floe, both asleep from the start (never solved against each other),
+// is woken by a wake box. The solve now hands its weight (546 kg x g x h = 22.3 N s per solve, 4x
+// the floe's m speed = 5.5 N s) to the floe, which held it unsolved while both slept: not a change
+// of what the floe holds (allow_neighbours), so the floe stays asleep and holds the block.
+TEST(FarSleep, AWokenBlockBringsItsWeightWithoutWakingTheBlockBelow) {
+  RigidWorldDef d = sleepy(true);
+  d.far_sleep.wake_hops = 0;
+  RigidWorld w(d);
+  const BlockId f = w.add_block(floe(0.0));
+  BlockDef top = floe(0.0);
+  top.position.z() += 0.6;  // on the floe's top face, dry
+  const BlockId b = w.add_block(top);
+  w.step(0.05);
+  ASSERT_TRUE(w.asleep(f) && w.asleep(b));
+  const Vec3 xb = w.position(b);
+  w.set_wake_boxes({{xb - Vec3::Constant(0.1), xb + Vec3::Constant(0.1)}});
+  double top_speed = 0.0;
+  for (int k = 0; k < 240; ++k) {
+    w.substep();
+    top_speed = std::max(top_speed, w.velocity(b).norm());
+  }
+  EXPECT_FALSE(w.asleep(b));
+  EXPECT_TRUE(w.asleep(f));  // (woken in the first sub-step without allow_neighbours, checked)
+  EXPECT_LT(top_speed, 3e-2);  // m/s; measured 3.1e-3 (its first sub-step: it starts exactly in contact)
+  EXPECT_LT((w.position(b) - xb).norm(), 2e-4);  // m; measured 2.0e-5
+  std::printf("[ far sleep ] woken block on a sleeping floe: floe %s, block's largest speed %.2e m/s, moved %.2e m\n",
+              w.asleep(f) ? "asleep" : "awake", top_speed, (w.position(b) - xb).norm());
+}
+
+// zone_wakes_neighbours false: a block in a wake box keeps only itself awake; the floe it touches
+// stays asleep (with the default it is woken wake_hops away).
+TEST(FarSleep, ZoneKeepsOnlyItsOwnBlocksAwakeWhenAsked) {
+  for (const bool wakes : {true, false}) {
+    RigidWorldDef d = sleepy(true);
+    d.far_sleep.zone_wakes_neighbours = wakes;
+    RigidWorld w(d);
+    const BlockId a = w.add_block(floe(0.0));
+    const BlockId n = w.add_block(floe(1.0));
+    w.step(0.05);
+    w.set_wake_boxes({{w.position(a) - Vec3::Constant(0.1), w.position(a) + Vec3::Constant(0.1)}});
+    w.step(0.1);
+    EXPECT_FALSE(w.asleep(a));
+    EXPECT_EQ(w.asleep(n), !wakes) << "zone_wakes_neighbours " << wakes;
+  }
 }
 
 TEST(FarSleep, BadSettingsAreRefused) {
