@@ -1244,6 +1244,193 @@ RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress)
   return res;
 }
 
+RidgeResult resettle_ridge(const RidgeResult& in, const RidgeResettleDef& rd, RidgeResettleStats* stats_out,
+                           const RidgeProgressFn& progress) {
+  const auto wall0 = std::chrono::steady_clock::now();
+  const RidgeDef& d = in.def;
+  const std::size_t n = in.blocks.size();
+  if (!rd.keep.empty() && rd.keep.size() != n)
+    throw InputError("resettle/keep", "must have one flag per block of the ridge (" + std::to_string(n) + ")");
+  if (rd.phases.empty()) throw InputError("resettle/phases", "needs at least one phase");
+  for (const auto& ph : rd.phases)
+    if (!(ph.dt > 0.0) || !(ph.time >= 0.0) || ph.solver_iterations < 1 || !(ph.damping >= 0.0))
+      throw InputError("resettle/phases", "each phase needs dt > 0, time >= 0, solver_iterations >= 1, damping >= 0");
+  RidgeResettleStats st;
+  auto kept = [&](std::size_t i) { return rd.keep.empty() || rd.keep[i] != 0; };
+  auto moves = [&](std::size_t i) {
+    const Vec3& x = in.blocks[i].position;
+    return (x.array() >= rd.region_lo.array()).all() && (x.array() <= rd.region_hi.array()).all();
+  };
+  std::vector<RidgeBlock> blocks = in.blocks;  // current poses
+  std::vector<IceBox> plates = rd.plates;      // current poses (rest poses in rd.plates)
+  std::vector<Vec3> last_second;               // moving blocks' positions one second before the end
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!kept(i)) ++st.dropped_blocks;
+    else if (moves(i)) ++st.moving_blocks;
+    else ++st.held_blocks;
+  }
+  double ke = 0.0, t_total = 0.0, t_end = 0.0;
+  for (const auto& ph : rd.phases) t_end += ph.time;
+  const double vcap_h = d.settle.speed_cap_factor * d.block_thickness;  // / dt: the generator's cap
+  for (const auto& ph : rd.phases) {
+    RidgeDef pd = d;
+    pd.settle.dt = ph.dt;
+    pd.settle.solver_iterations = ph.solver_iterations;
+    pd.settle.allow_sleep = false;  // (Bullet's islands would join the held blocks' neighbours)
+    RigidWorldDef wd = settle_world_def(pd);
+    // Every penetration removed by position (split impulse) as in the run's world (bridge): at a
+    // small step the erp push of a shallow overlap (Bullet's below 4 cm) is a kick (0.2 x 4 cm at
+    // 1/240 s: 1.9 m/s), and a block pile that rested at 1/30 s has such overlaps everywhere.
+    wd.split_impulse_depth = 0.0;
+    RigidWorld world(wd);
+    for (const IceBox& b : rd.fixed_boxes) {
+      BlockDef bd;
+      bd.half_extents = b.half_extents;
+      bd.position = b.position;
+      bd.fixed = true;
+      world.add_block(bd);
+    }
+    std::vector<BlockId> plate_ids;
+    for (std::size_t k = 0; k < plates.size(); ++k) {
+      const IceBox& rest = rd.plates[k];
+      BlockDef bd;
+      bd.half_extents = rest.half_extents;
+      bd.position = plates[k].position;
+      bd.density = plate_density(rest.position.z() + rest.half_extents.z(), rest.position.z() - rest.half_extents.z(),
+                                 d.water_density);
+      bd.linear_factor = Vec3::UnitZ();
+      bd.angular_factor = Vec3::Zero();
+      plate_ids.push_back(world.add_block(bd));
+    }
+    for (std::size_t k = 0; k + 1 < plates.size(); ++k) {  // joined: the settle world's joints never break
+      FreezeJointDef j;
+      j.a = plate_ids[k];
+      j.b = plate_ids[k + 1];
+      j.anchor = 0.5 * (plates[k].position + plates[k + 1].position);
+      j.normal = (plates[k + 1].position - plates[k].position).normalized();
+      j.area = 1.0;
+      world.add_freeze_joint(j);
+    }
+    if (!rd.obstacle_triangles.empty()) {
+      KinematicMeshDef m;
+      m.vertices = rd.obstacle_vertices;
+      m.triangles = rd.obstacle_triangles;
+      m.position = rd.obstacle_position;
+      world.add_kinematic_mesh(m);
+    }
+    std::vector<BlockId> ids(n);
+    std::vector<std::size_t> moving;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (!kept(i)) continue;
+      BlockDef bd;
+      bd.half_extents = blocks[i].half_extents;
+      bd.position = blocks[i].position;
+      bd.orientation = blocks[i].orientation;
+      bd.density = d.ice_density;
+      bd.fixed = !moves(i);
+      ids[i] = world.add_block(bd);
+      if (!bd.fixed) moving.push_back(i);
+    }
+    const auto steps = static_cast<std::uint64_t>(std::llround(ph.time / ph.dt));
+    const double damp = 1.0 / (1.0 + ph.damping * ph.dt), vcap = vcap_h / ph.dt;
+    const std::uint64_t report_every = std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::lround(0.25 / ph.dt)));
+    for (std::uint64_t s = 0; s < steps; ++s) {
+      world.substep();
+      t_total += ph.dt;
+      for (const std::size_t i : moving) {
+        Vec3 v = world.velocity(ids[i]), w = world.angular_velocity(ids[i]);
+        const double sv = v.norm(), sw = w.norm() * blocks[i].half_extents.maxCoeff();
+        if (sv > vcap) v *= vcap / sv;
+        if (sw > vcap) w *= vcap / sw;
+        world.set_velocity(ids[i], v * damp, w * damp);
+      }
+      if (last_second.empty() && t_total >= t_end - 1.0 - 1e-9) {
+        last_second.assign(n, Vec3::Zero());
+        for (const std::size_t i : moving) last_second[i] = world.position(ids[i]);
+      }
+      if ((s + 1) % report_every == 0 || s + 1 == steps) {
+        ke = world.kinetic_energy() / static_cast<double>(std::max<std::size_t>(1, moving.size()));
+        if (progress) {
+          RidgeProgress q;
+          q.phase = "resettle";
+          q.time = t_total;
+          q.max_time = t_end;
+          q.kinetic_energy_per_block = ke;
+          q.blocks = moving.size();
+          progress(q);
+        }
+      }
+    }
+    for (const std::size_t i : moving) {
+      blocks[i].position = world.position(ids[i]);
+      blocks[i].orientation = world.orientation(ids[i]);
+      if (blocks[i].orientation.w() < 0.0) blocks[i].orientation.coeffs() *= -1.0;  // canonical sign
+    }
+    for (std::size_t k = 0; k < plates.size(); ++k) plates[k].position = world.position(plate_ids[k]);
+  }
+  st.final_kinetic_energy_per_block = ke;
+  // The result: blocks renumbered without the left-out ones, joints carried with their first block.
+  RidgeResult res = in;
+  res.blocks.clear();
+  std::vector<std::int32_t> index(n, -1);
+  for (std::size_t i = 0; i < n; ++i) {
+    if (!kept(i)) continue;
+    index[i] = static_cast<std::int32_t>(res.blocks.size());
+    res.blocks.push_back(blocks[i]);
+    st.max_displacement = std::max(st.max_displacement, (blocks[i].position - in.blocks[i].position).norm());
+    if (!last_second.empty() && moves(i))
+      st.last_second_max_displacement =
+          std::max(st.last_second_max_displacement, (blocks[i].position - last_second[i]).norm());
+  }
+  res.joints.clear();
+  for (const RidgeJoint& j : in.joints) {
+    const auto a = static_cast<std::size_t>(j.a);
+    if (index[a] < 0 || (j.b >= 0 && index[static_cast<std::size_t>(j.b)] < 0)) {
+      ++st.dropped_joints;
+      continue;
+    }
+    RidgeJoint o = j;
+    o.a = index[a];
+    if (j.b >= 0) o.b = index[static_cast<std::size_t>(j.b)];
+    const Quat dq = blocks[a].orientation * in.blocks[a].orientation.conjugate();
+    o.anchor = blocks[a].position + dq * (j.anchor - in.blocks[a].position);
+    o.normal = dq * j.normal;
+    if (j.b < 0) {  // to the ice: the result's ice is the plates; the plate nearest the anchor in x
+      if (plates.empty()) {
+        ++st.dropped_joints;
+        continue;
+      }
+      std::size_t best = 0;
+      double dist = std::numeric_limits<double>::infinity();
+      for (std::size_t k = 0; k < plates.size(); ++k) {
+        const double dx = std::max(0.0, std::abs(o.anchor.x() - plates[k].position.x()) - plates[k].half_extents.x());
+        if (dx < dist) dist = dx, best = k;
+      }
+      o.b = -1 - static_cast<std::int32_t>(best);
+    }
+    res.joints.push_back(o);
+  }
+  res.ice.clear();
+  for (std::size_t k = 0; k < plates.size(); ++k) {
+    IceBox b = rd.plates[k];
+    b.lift = plates[k].position.z() - rd.plates[k].position.z();
+    b.position = plates[k].position;
+    res.ice.push_back(b);
+  }
+  if (!plates.empty()) {
+    res.def.sheet.floating = true;
+    res.def.sheet.plates_joined = true;
+    st.plate_lift = res.ice.front().lift;
+  }
+  res.stats.keel_blocks = res.stats.sail_blocks = 0;
+  for (const RidgeBlock& b : res.blocks) (b.part == 0 ? res.stats.keel_blocks : res.stats.sail_blocks)++;
+  res.stats.joints = res.joints.size();
+  st.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  if (stats_out) *stats_out = st;
+  return res;
+}
+
+
 // ---------------------------------------------------------------- JSON
 // Read with the shared reader (src/json/reader.h): JSON-pointer errors, did-you-mean on
 // unknown keys, units in the messages. A null value means "not given" (ridge_def_to_json

@@ -25,6 +25,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <array>
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -254,6 +255,46 @@ using RidgeProgressFn = std::function<void(const RidgeProgress&)>;
 /// Builds the ridge. Same def (seed included) -> identical result bit for bit (wall_time
 /// aside). Throws hs::InputError for an impossible definition.
 RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress = {});
+
+/// Settling an existing ridge again under another ice cover (docs/rigid.md, "The bench's ridge
+/// at rest"): a ridge generated under fixed boxes is not at rest where a run floats a particle
+/// sheet instead (the sheet must carry the keel's buoyancy that the boxes held), nor around a
+/// structure placed into it. The blocks whose centre lies in [region_lo, region_hi] move; every
+/// other block is held where it is (a fixed body, as far sleep holds it in the run).
+struct RidgeResettleDef {
+  std::vector<IceBox> fixed_boxes;  ///< the cover that stays (fixed bodies)
+  /// Plates at their rest pose (position, half extents: contact surfaces at rest), floating with
+  /// plate_density, heave only, joined rigidly to each other in order (the run's lattice is one
+  /// piece); their final pose and lift go to the result's `ice`.
+  std::vector<IceBox> plates;
+  /// A structure held where it stands (velocity ignored), e.g. the pier; no triangles: none.
+  std::vector<Vec3> obstacle_vertices;
+  std::vector<std::array<std::uint32_t, 3>> obstacle_triangles;
+  Vec3 obstacle_position = Vec3::Zero();
+  std::vector<char> keep;  ///< per block of the input; false: left out (inside the structure); empty: all
+  Vec3 region_lo = Vec3::Zero(), region_hi = Vec3::Zero();
+  struct Phase {
+    double dt = 1.0 / 30.0, time = 10.0;  ///< s
+    int solver_iterations = 20;
+    double damping = 5.0;  ///< 1/s, v /= 1 + damping dt per step (as the generator's settle phase)
+  };
+  std::vector<Phase> phases{Phase{}, Phase{1.0 / 240.0, 2.0, 20, 5.0}};
+};
+/// What resettle_ridge did (kept in the result's `generation` under "resettle").
+struct RidgeResettleStats {
+  std::size_t moving_blocks = 0, held_blocks = 0, dropped_blocks = 0, dropped_joints = 0;
+  double plate_lift = 0.0;                 ///< m, the first plate's (joined plates heave together)
+  double final_kinetic_energy_per_block = 0.0;  ///< J, moving blocks, end of the last phase
+  double max_displacement = 0.0;           ///< m, largest block move from the input's pose
+  double last_second_max_displacement = 0.0;  ///< m, over the last second of the last phase
+  double wall_time = 0.0;                  ///< s
+};
+/// The input with the moving blocks at their settled poses, the left-out blocks removed (joints
+/// renumbered, those of left-out blocks dropped), every joint's anchor carried with its first
+/// block, `ice` the plates (final pose, lift) and def.sheet.floating set, so that a run lifts
+/// its sheet by their lift (sim::sheet_lift). Deterministic.
+RidgeResult resettle_ridge(const RidgeResult& in, const RidgeResettleDef& rd, RidgeResettleStats* stats = nullptr,
+                           const RidgeProgressFn& progress = {});
 
 // ---- pieces, public for tests and tools ----
 

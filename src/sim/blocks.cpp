@@ -202,6 +202,18 @@ void drop_loose_blocks(BlockSetup& out) {
   keep_blocks(out, jointed);
 }
 
+}  // namespace
+
+bool block_reaches_into_pier(const scene::StructureDef& st, const Vec3& half_extents, const Vec3& position) {
+  const Vec3 rel = position - st.position;
+  const double R = half_extents.norm();
+  double r_pier = 0.0;
+  for (int q = -4; q <= 4; ++q) r_pier = std::max(r_pier, mesh::pier_radius_at(st.pier, rel.z() + 0.25 * q * R));
+  return std::hypot(rel.x(), rel.y()) < r_pier + R;
+}
+
+namespace {
+
 /// Blocks that start inside the structure would be pushed out violently (or, as particles,
 /// stop the run): a parametric pier is a solid of revolution, so a block is dropped when its
 /// bounding sphere reaches inside the pier's radius at any height it spans. Joints follow.
@@ -211,11 +223,7 @@ void drop_blocks_inside_pier(BlockSetup& out, const scene::StructureDef& st) {
   for (std::size_t k = 0; k < out.blocks.size(); ++k) {
     const auto& bd = out.blocks[k].def;
     if (bd.fixed) continue;  // immovable: nothing to push out (a fixed box reaching into the pier is the scene's choice)
-    const Vec3 rel = bd.position - st.position;
-    const double R = bd.half_extents.norm();
-    double r_pier = 0.0;
-    for (int q = -4; q <= 4; ++q) r_pier = std::max(r_pier, mesh::pier_radius_at(st.pier, rel.z() + 0.25 * q * R));
-    if (std::hypot(rel.x(), rel.y()) < r_pier + R) {
+    if (block_reaches_into_pier(st, bd.half_extents, bd.position)) {
       keep[k] = 0;
       ++dropped;
     }

@@ -31,6 +31,11 @@ struct BlockSetup {
 /// "blocks" section gives an empty block list (no rigid world).
 BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius);
 
+/// Whether a block (centre, half extents) starting there would reach into a parametric pier
+/// (its bounding sphere inside the pier's radius at a height it spans): such blocks are left out
+/// of a run (with a warning) and of `bench hybrid`'s ridge at rest.
+bool block_reaches_into_pier(const scene::StructureDef& st, const Vec3& half_extents, const Vec3& position);
+
 /// The keel of the scene's ridge file (BlockSetup::ridge without building anything), or none
 /// when the scene has no ridge file. InputError at /blocks/ridge_file for a missing or bad file.
 std::optional<RidgeKeel> scene_ridge_keel(const scene::Scene& s);

@@ -504,4 +504,53 @@ TEST(RidgePlates, GenerationRecordRoundTrips) {
   EXPECT_EQ(g.at("plates")[1].at("lift").get<double>(), r.ice[1].lift);
 }
 
+// resettle_ridge (bench hybrid's ridge at rest): a 1 x 1 x 0.6 m block fully submerged under a
+// 2 x 2 m floating plate (heave only) pushes it up until the plate's extra buoyancy carries the
+// block's: lift = (rho_w - rho_i) V / (rho_w A) = 115 x 0.6 / (1025 x 4) = 16.8 mm. A block outside
+// the region keeps its pose to the bit; a left-out block goes with its joints; a joint's anchor
+// moves with its first block; a joint to the ice is taken to the plate.
+TEST(Ridge, ResettleLiftsAFloatingPlateByTheBuoyancyUnderItAndHoldsTheRest) {
+  RidgeResult in;
+  in.def.ice_density = 910.0;
+  in.def.water_density = 1025.0;
+  RidgeBlock under;
+  under.half_extents = Vec3(0.5, 0.5, 0.3);
+  under.position = Vec3(0.0, 0.0, -0.5 - 0.3);  // touching the plate's underside (-0.5)
+  RidgeBlock held = under;
+  held.position = Vec3(20.0, 0.0, -3.0);
+  RidgeBlock dropped = under;
+  dropped.position = Vec3(-20.0, 0.0, -3.0);
+  in.blocks = {under, dropped, held};
+  in.joints = {{0, 1, Vec3(-10, 0, -1), Vec3::UnitX(), 0.1},
+               {0, 2, Vec3(10, 0, -1), Vec3::UnitX(), 0.1},
+               {0, -1, Vec3(0, 0, -0.5), Vec3::UnitZ(), 0.5}};
+  RidgeResettleDef rd;
+  IceBox plate;
+  plate.half_extents = Vec3(1.0, 1.0, 0.3);
+  plate.position = Vec3(0.0, 0.0, -0.2);  // contact surfaces -0.5 .. 0.1
+  rd.plates = {plate};
+  rd.keep = {1, 0, 1};
+  rd.region_lo = Vec3(-5, -5, -10);
+  rd.region_hi = Vec3(5, 5, 10);
+  rd.phases = {{1.0 / 30.0, 20.0, 20, 5.0}, {1.0 / 240.0, 2.0, 20, 5.0}};
+  RidgeResettleStats st;
+  const RidgeResult out = resettle_ridge(in, rd, &st);
+  const double expected = (1025.0 - 910.0) * 0.6 / (1025.0 * 4.0);
+  ASSERT_EQ(out.ice.size(), 1u);
+  EXPECT_NEAR(out.ice[0].lift / expected, 1.0, 2e-4);  // measured -1.1e-5 (a plate that does not float: -1)
+  EXPECT_TRUE(out.def.sheet.floating);
+  ASSERT_EQ(out.blocks.size(), 2u);
+  EXPECT_NEAR(out.blocks[0].position.z() - under.position.z(), out.ice[0].lift, 1e-3);  // rose with it
+  EXPECT_EQ(out.blocks[1].position, held.position);  // held: to the bit
+  EXPECT_EQ(st.dropped_blocks, 1u);
+  EXPECT_EQ(st.dropped_joints, 1u);
+  ASSERT_EQ(out.joints.size(), 2u);
+  EXPECT_EQ(out.joints[0].b, 1);  // renumbered past the left-out block
+  const Vec3 moved = out.blocks[0].position - under.position;
+  EXPECT_LT((out.joints[0].anchor - (Vec3(10, 0, -1) + moved)).norm(), 2e-8);  // m; measured 2.2e-9 (a tilt of ~1e-10 rad)
+  EXPECT_EQ(out.joints[1].b, -1);
+  std::printf("[ ridge ] resettle: plate lift %.6f m (%.6f m expected, relative %.1e), block rose %.6f m, KE %.2e J\n",
+              out.ice[0].lift, expected, out.ice[0].lift / expected - 1.0, moved.z(), st.final_kinetic_energy_per_block);
+}
+
 }  // namespace hs::rigid
