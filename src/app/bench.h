@@ -7,6 +7,7 @@
 
 #include <cstdint>
 #include <ostream>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -27,6 +28,12 @@ struct BenchOptions {
   /// hybrid: the pier and the particle sheet 300 m from the ridge (nothing touches a block, every
   /// block asleep): what holding the ridge costs when nothing happens near it.
   bool idle = false;
+  /// hybrid: the ridge as generated (under fixed boxes), not settled again in the bench's world
+  /// (its sheet and pier): the bench before stop 43, whose ridge is in motion there.
+  bool as_generated = false;
+  /// hybrid: the pier's axis x, m (NaN: 3 m outside the keel's -x toe); the sheet spans
+  /// [x + 7.5, x + 34] m in front of it.
+  double pier_x = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Runs benchmark `name`, prints its JSON result (one object, one line) to `out`.
