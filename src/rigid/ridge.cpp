@@ -1425,6 +1425,8 @@ RidgeResult resettle_ridge(const RidgeResult& in, const RidgeResettleDef& rd, Ri
   res.stats.keel_blocks = res.stats.sail_blocks = 0;
   for (const RidgeBlock& b : res.blocks) (b.part == 0 ? res.stats.keel_blocks : res.stats.sail_blocks)++;
   res.stats.joints = res.joints.size();
+  res.stats.ice_joints = static_cast<std::size_t>(
+      std::count_if(res.joints.begin(), res.joints.end(), [](const RidgeJoint& j) { return j.b < 0; }));
   st.wall_time = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
   if (stats_out) *stats_out = st;
   return res;

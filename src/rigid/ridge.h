@@ -256,8 +256,8 @@ using RidgeProgressFn = std::function<void(const RidgeProgress&)>;
 /// aside). Throws hs::InputError for an impossible definition.
 RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress = {});
 
-/// Settling an existing ridge again under another ice cover (docs/rigid.md, "The bench's ridge
-/// at rest"): a ridge generated under fixed boxes is not at rest where a run floats a particle
+/// Settling an existing ridge again under another ice cover (docs/rigid.md, "Stop 43: the rule at
+/// scale, and the bench's ridge at rest"): a ridge generated under fixed boxes is not at rest where a run floats a particle
 /// sheet instead (the sheet must carry the keel's buoyancy that the boxes held), nor around a
 /// structure placed into it. The blocks whose centre lies in [region_lo, region_hi] move; every
 /// other block is held where it is (a fixed body, as far sleep holds it in the run).
@@ -280,7 +280,7 @@ struct RidgeResettleDef {
   };
   std::vector<Phase> phases{Phase{}, Phase{1.0 / 240.0, 2.0, 20, 5.0}};
 };
-/// What resettle_ridge did (kept in the result's `generation` under "resettle").
+/// What resettle_ridge did (returned beside the result; not written to the ridge file).
 struct RidgeResettleStats {
   std::size_t moving_blocks = 0, held_blocks = 0, dropped_blocks = 0, dropped_joints = 0;
   double plate_lift = 0.0;                 ///< m, the first plate's (joined plates heave together)
@@ -291,8 +291,11 @@ struct RidgeResettleStats {
 };
 /// The input with the moving blocks at their settled poses, the left-out blocks removed (joints
 /// renumbered, those of left-out blocks dropped), every joint's anchor carried with its first
-/// block, `ice` the plates (final pose, lift) and def.sheet.floating set, so that a run lifts
-/// its sheet by their lift (sim::sheet_lift). Deterministic.
+/// block, `ice` the plates (final pose, lift; the fixed boxes are not kept) and def.sheet.floating
+/// set, so that a run lifts its sheet by their lift (sim::sheet_lift). A joint to the ice is taken
+/// to the plate nearest its anchor in x (the ice index only names a part of the sheet: a run makes
+/// block-particle bonds against the joint's patch wherever particles are), and dropped when there
+/// are no plates. Deterministic.
 RidgeResult resettle_ridge(const RidgeResult& in, const RidgeResettleDef& rd, RidgeResettleStats* stats = nullptr,
                            const RidgeProgressFn& progress = {});
 
