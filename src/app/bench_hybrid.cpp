@@ -1,5 +1,5 @@
 // `hybridsim bench hybrid`: the rigid world at the paper's scale (docs/rigid.md, "Far sleep" and
-// "The bench's ridge at rest").
+// "Stop 43: the rule at scale, and the bench's ridge at rest").
 //
 // The scene: the paper-size ridge (scenes/ridge_paper_size.json: ~28,000 keel and ~1,500 sail blocks,
 // ~78,000 freeze joints, 200 m along y) with the parametric pier half-way along it (y = 100 m), its
@@ -27,14 +27,15 @@
 // ($HYBRIDSIM_CACHE_DIR, else $XDG_CACHE_HOME/hybridsim, else ~/.cache/hybridsim) as
 // ridge_paper_size_ridge.h5 and says how to make it when it is missing; --ridge FILE takes another
 // ridge file (e.g. scenes/ridge_keel_8m.json's for a quick run: the sheet is then placed at its
-// middle along y). The ridge settled in the bench's world is made once (~30 s) and kept beside it.
+// middle along y). The ridge settled in the bench's world is made once (~30 s) and kept in the
+// same cache directory.
 #include "app/bench.h"
 
 #include "common/error.h"
 #include "io/ridge_file.h"
-#include "scene/scene.h"
 #include "mesh/tri_mesh.h"
 #include "rigid/ridge.h"
+#include "scene/scene.h"
 #include "sim/blocks.h"
 #include "sim/build.h"
 #include "sim/ridge_sheet.h"
@@ -49,8 +50,13 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <exception>
+#include <functional>
+#include <limits>
+#include <sstream>
 #include <string>
 #include <sys/resource.h>
+#include <unistd.h>
 
 namespace hs::app {
 
@@ -117,10 +123,10 @@ std::vector<rigid::IceBox> cover_boxes(const rigid::RidgeResult& r, double hx0, 
 /// into the keel, at x = -34 m on the paper-size ridge: the 376 blocks it would have reached into
 /// were left out, and the keel slumped into their space for as long as it was settled, docs/rigid.md.)
 double default_pier_x(const rigid::RidgeResult& r) {
-  double toe = 0.0;
+  double toe = std::numeric_limits<double>::infinity();
   for (const auto& b : r.blocks)
     if (b.part == 0) toe = std::min(toe, b.position.x());
-  return toe - 3.0;
+  return std::isfinite(toe) ? toe - 3.0 : -34.0;  // (no keel block: the place of the bench before stop 43)
 }
 
 /// The bench scene (see the top of this file) for the ridge in `r` (file `path`).
@@ -190,19 +196,19 @@ nlohmann::json bench_scene(const rigid::RidgeResult& r, const std::string& path,
       {"blocks", blocks}};
 }
 
-/// The bench's ridge at rest (docs/rigid.md, "The bench's ridge at rest"): the ridge was generated
-/// under fixed boxes, but the bench floats a particle sheet in a hole of that cover and stands the
-/// pier in the keel (the blocks it would reach into left out). Under the sheet the keel's
-/// buoyancy, which the boxes held, lifts the sheet and the keel with it, and around the pier the
-/// blocks slide into the space of those left out: a ridge in motion, which wakes far sleep's
-/// blocks for reasons of its own. So the ridge is settled once more in the bench's world, rigid
-/// only: the cover as fixed boxes, in the hole joined heave-only plates with the sheet's contact
-/// surfaces (as `hybridsim ridge` settles a run scene's keel, docs/ridge.md "Floating plates"),
-/// the pier held, the blocks within 8 m of the hole and of the pier free, every other block held
-/// where it is; 10 s at the generator's settle step and 2 s at 1/240 s, both damped as the
-/// generator's settle phase. The run then lifts its sheet by the plates' lift. Made once per ridge
-/// file and kept in the cache directory beside it (<stem>.bench_rest_v1.h5; remade when the ridge
-/// file is newer).
+/// The bench's ridge at rest (docs/rigid.md, "Stop 43: the rule at scale, and the bench's ridge at
+/// rest"): the ridge was generated under fixed boxes, but the bench floats a particle sheet in a
+/// hole of that cover and stands the pier at (or in) the keel, the blocks it would reach into left
+/// out. Under the sheet the keel's buoyancy, which the boxes held, lifts the sheet and the keel with
+/// it, and around the pier the blocks slide into the space of those left out: a ridge in motion,
+/// which wakes far sleep's blocks for reasons of its own. So the ridge is settled once more in the
+/// bench's world, rigid only: the cover as fixed boxes, in the hole joined heave-only plates with
+/// the sheet's contact surfaces (as `hybridsim ridge` settles a run scene's keel, docs/ridge.md
+/// "Floating plates"), the pier held, the blocks within 8 m of the hole and of the pier free, every
+/// other block held where it is; 30 s at the generator's settle step and 3 s at 1/240 s, both
+/// damped as the generator's settle phase. The run then lifts its sheet by the plates' lift. Made
+/// once and kept in the cache directory as <stem>.bench_rest_<key>.h5, the key a hash of the ridge
+/// file (absolute path, size, modification time), the bench's world and the settle's parameters.
 struct RestedRidge {
   std::string path;
   bool made = false;  ///< made by this call (else: found in the cache)
@@ -214,16 +220,30 @@ RestedRidge ridge_at_rest(const par::Comm& comm, const std::string& path, const 
   namespace fs = std::filesystem;
   RestedRidge out;
   const std::string dir = bench_cache_dir();
-  char tag[64];
-  std::snprintf(tag, sizeof tag, ".bench_rest_v1_pier_x%+.2f.h5", s.structure.position.x());
-  out.path = (dir.empty() ? std::string(".") : dir) + "/" + fs::path(path).stem().string() + tag;
-  std::error_code ec;
-  if (fs::exists(out.path, ec) && fs::last_write_time(out.path, ec) >= fs::last_write_time(path, ec)) return out;
+  const double margin = 8.0, gap = 0.5;  // (gap: as bench_scene)
+  const std::vector<rigid::RidgeResettleDef::Phase> phases = {{1.0 / 30.0, 30.0, 20, 5.0}, {1.0 / 240.0, 3.0, 20, 5.0}};
+  {
+    std::error_code ec;
+    std::ostringstream key;
+    key.precision(17);
+    key << "bench_rest v2|" << fs::absolute(path).string() << "|" << fs::file_size(path, ec) << "|"
+        << fs::last_write_time(path, ec).time_since_epoch().count() << "|" << s.structure.position.transpose() << "|"
+        << s.ice.origin[0] << " " << s.ice.origin[1] << " " << s.ice.length << " " << s.ice.width << " "
+        << s.material.particle_diameter << "|" << margin << " " << gap;
+    for (const auto& ph : phases) key << "|" << ph.dt << " " << ph.time << " " << ph.solver_iterations << " " << ph.damping;
+    char tag[48];
+    std::snprintf(tag, sizeof tag, ".bench_rest_%016zx.h5", std::hash<std::string>{}(key.str()));
+    out.path = (dir.empty() ? std::string(".") : dir) + "/" + fs::path(path).stem().string() + tag;
+    if (fs::exists(out.path, ec)) return out;
+  }
   out.made = true;
-  if (comm.rank() == 0) {
+  // Rank 0 settles and writes it; every rank learns whether that worked (an error on rank 0 alone
+  // would leave the others waiting).
+  std::exception_ptr failure;
+  if (comm.rank() == 0) try {
     rigid::RidgeResettleDef rd;
+    rd.phases = phases;
     const double x0 = s.ice.origin[0], x1 = x0 + s.ice.length, y0 = s.ice.origin[1], y1 = y0 + s.ice.width;
-    const double gap = 0.5;  // as bench_scene
     rd.fixed_boxes = cover_boxes(r, x0 - gap, x1 + gap, y0 - gap, y1 + gap);
     // The hole's plates: the sheet's contact surfaces at rest (sim::sheet_geometry), level ice and
     // the consolidated layer's band (its spheres reach D/2 beyond the band).
@@ -250,12 +270,10 @@ RestedRidge ridge_at_rest(const par::Comm& comm, const std::string& path, const 
     for (std::size_t k = 0; k < r.blocks.size(); ++k)
       rd.keep[k] = !sim::block_reaches_into_pier(s.structure, r.blocks[k].half_extents, r.blocks[k].position);
     const mesh::Aabb pb = mesh::bounding_box(m);
-    const double margin = 8.0;
     rd.region_lo = Vec3(std::min(x0, s.structure.position.x() + pb.lo.x()) - margin,
                         std::min(y0, s.structure.position.y() + pb.lo.y()) - margin, -1e9);
     rd.region_hi = Vec3(std::max(x1, s.structure.position.x() + pb.hi.x()) + margin,
                         std::max(y1, s.structure.position.y() + pb.hi.y()) + margin, 1e9);
-    rd.phases = {{1.0 / 30.0, 30.0, 20, 5.0}, {1.0 / 240.0, 3.0, 20, 5.0}};
     std::fprintf(stderr, "bench hybrid: settling the ridge in the bench's world once (%s)...\n", out.path.c_str());
     double next = 0.0;
     const rigid::RidgeResult rested = rigid::resettle_ridge(r, rd, &out.stats, [&](const rigid::RidgeProgress& q) {
@@ -264,12 +282,22 @@ RestedRidge ridge_at_rest(const par::Comm& comm, const std::string& path, const 
       std::fprintf(stderr, "  %5.2f / %.2f s, %zu blocks free, kinetic energy %.3g J per block\n", q.time, q.max_time,
                    q.blocks, q.kinetic_energy_per_block);
     });
+    std::error_code ec;
     fs::create_directories(fs::path(out.path).parent_path(), ec);
-    const std::string tmp = out.path + ".tmp";
+    if (ec)
+      throw InputError("/bench/ridge", "cannot make the cache directory '" + fs::path(out.path).parent_path().string() +
+                                           "' for the bench's ridge at rest: " + ec.message() +
+                                           " (set HYBRIDSIM_CACHE_DIR to a writable directory)");
+    const std::string tmp = out.path + ".tmp" + std::to_string(::getpid());
     io::save_ridge(tmp, rested);
     fs::rename(tmp, out.path);
+  } catch (...) {
+    failure = std::current_exception();
   }
-  comm.barrier();
+  double failed = failure ? 1.0 : 0.0;
+  comm.max(&failed, 1);
+  if (failure) std::rethrow_exception(failure);
+  if (failed > 0.0) throw InputError("/bench/ridge", "rank 0 could not settle the ridge in the bench's world (see its error)");
   return out;
 }
 
