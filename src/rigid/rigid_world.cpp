@@ -435,10 +435,7 @@ struct RigidWorld::Impl {
   // (on the keel ridge at rest a test on the rim speed |I^-1 dL| |h| woke 770 blocks in 0.6 s,
   // this one 25; docs/rigid.md "Far sleep").
   bool check_sleepers(bool may_repeat) {
-    if (asleep_count == 0 && hold_fresh_list.empty() && touched_before.empty()) {
-      clear_allowances();
-      return false;
-    }
+    if (asleep_count == 0 && hold_fresh_list.empty() && touched_before.empty()) return false;
     const double h = def.dt;
     touched.clear();
     auto take_slot = [&](std::size_t k, const Vec3& j) {
@@ -483,8 +480,8 @@ struct RigidWorld::Impl {
     auto test = [&](std::uint32_t k) {
       if (!(state[k] & kAsleep) || hold_fresh[k]) return;
       const double m = blocks[k].mass;
-      const Vec3 d = solve_j[k] - hold_j[k];
-      if ((d - allowed(k, d)).squaredNorm() > m * m * v * v) to_wake.push_back(k);
+      const double lim = m * v + (k < allow.size() ? allow[k] : 0.0);
+      if ((solve_j[k] - hold_j[k]).squaredNorm() > lim * lim) to_wake.push_back(k);
     };
     for (const std::uint32_t k : touched) test(k);
     for (const std::uint32_t k : touched_before)
@@ -497,15 +494,7 @@ struct RigidWorld::Impl {
     sleepers_woken_by_solve += to_wake.size();
     for (const std::uint32_t k : to_wake) {
       wake(blocks[k]);
-      const auto [f, t] = static_load(blocks[k]);
-      allow_neighbours(blocks[k], f);
-      if (repeat) {
-        // Its weight and water load of this sub-step, which the world's force pass gave the other
-        // stepped blocks before the solve (without it the repeat would solve it weightless, and
-        // the allowance above would be spent in a sub-step that does not carry that load).
-        blocks[k].body->applyCentralImpulse(to_bt(f * h));
-        blocks[k].body->applyTorqueImpulse(to_bt(t * h));
-      }
+      allow_neighbours(blocks[k]);
       if (k < caller_j.size() && (!caller_j[k].isZero(0.0) || !caller_l[k].isZero(0.0))) {
         // loads_held: the caller's load of this sub-step, as a stepped block takes it (before the solve)
         blocks[k].body->applyCentralImpulse(to_bt(caller_j[k]));
@@ -520,9 +509,15 @@ struct RigidWorld::Impl {
         if (state[k] & kAsleep) hold_j[k] = solve_j[k];
         hold_fresh[k] = 0;
       }
-      for (const std::uint32_t k : allow_list)  // (allow_neighbours: moved by what was allowed)
-        if ((state[k] & kAsleep) && !hold_fresh[k]) hold_j[k] += allowed(k, solve_j[k] - hold_j[k]);
-      clear_allowances();
+      for (const std::uint32_t k : allow_list) {  // (allow_neighbours: moved by the allowance at most)
+        if ((state[k] & kAsleep) && !hold_fresh[k]) {
+          const Vec3 d = solve_j[k] - hold_j[k];
+          const double n = d.norm();
+          hold_j[k] += n <= allow[k] ? d : (allow[k] / n) * d;
+        }
+        allow[k] = 0.0;
+      }
+      allow_list.clear();
       hold_fresh_list.clear();
       touched_before = touched;
     }
@@ -574,57 +569,34 @@ struct RigidWorld::Impl {
   }
   // A sleeping block woke: while both slept, its sleeping neighbours held its weight and buoyancy
   // unsolved; now the solve hands that static load to them through their contacts and joints with
-  // it, and a neighbour's reference, taken while it was not solved, does not contain it. So a
-  // neighbour on the side that load pushes toward ((c_k - c_s) . f > 0; each neighbour once) is
-  // allowed a change of its load along f of up to the woken block's net static load f (weight and
-  // water load at rest) times the sub-step, for the rest of the sub-step, and its reference takes in
-  // the part of the change so allowed at the sub-step's last solve (check_sleepers). A change across
-  // f, against it or beyond it (a push, a caller's load) is tested as before. Without it every
-  // wake-up woke the blocks under (or, submerged, over) the woken block (docs/rigid.md, "Stop 43").
-  std::vector<Vec3> allow;  // per block slot: the allowed impulse change, summed over woken neighbours
-  std::vector<std::uint32_t> allow_list, allow_stamp;
-  std::uint32_t allow_calls = 0;
-  std::pair<Vec3, Vec3> static_load(const BlockSlot& s) const {
-    Vec3 f = s.mass * def.gravity, t = Vec3::Zero();
+  // it, and a neighbour's reference, taken while it was not solved, does not contain it. So each
+  // neighbour may depart from its reference by the woken block's net static load (weight and water
+  // load at rest) times the sub-step, on top of m speed, for the rest of the sub-step, and its
+  // reference moves toward the load of the sub-step's last solve by that much at most
+  // (check_sleepers): what else the woken block passes on (a push, a caller's load) stays a change.
+  // Without it every wake-up woke the neighbours below and above the woken block (docs/rigid.md,
+  // "Far sleep").
+  std::vector<double> allow;
+  std::vector<std::uint32_t> allow_list;
+  void allow_neighbours(BlockSlot& s) {
+    const btTransform& tr = s.body->getWorldTransform();
+    Vec3 f = s.mass * def.gravity;
     if (def.water) {
-      const btTransform& tr = s.body->getWorldTransform();
       BoxWaterParams wp;
       wp.level = def.water_level;
       wp.density = def.water_density;
       wp.linear_drag = def.linear_drag;
       wp.drag_coefficient = def.quadratic_drag_cd;
-      const WaterLoad wl = box_water_load(wp, -def.gravity.z(), s.half, from_bt(tr.getOrigin()),
-                                          from_bt(tr.getRotation()), Vec3::Zero(), Vec3::Zero());
-      f += wl.force;
-      t = wl.torque;
+      f += box_water_load(wp, -def.gravity.z(), s.half, from_bt(tr.getOrigin()), from_bt(tr.getRotation()),
+                          Vec3::Zero(), Vec3::Zero())
+               .force;
     }
-    return {f, t};
-  }
-  void allow_neighbours(BlockSlot& s, const Vec3& f) {
-    if (allow.size() < blocks.size()) {
-      allow.resize(blocks.size(), Vec3::Zero());
-      allow_stamp.resize(blocks.size(), 0);
-    }
-    ++allow_calls;
-    const Vec3 c = from_bt(s.body->getWorldTransform().getOrigin());
+    const double a = f.norm() * def.dt;
+    if (allow.size() < blocks.size()) allow.resize(blocks.size(), 0.0);
     for_sleeping_neighbours(s, [&](std::size_t k) {
-      if (allow_stamp[k] == allow_calls || (sleep_centre[k] - c).dot(f) <= 0.0) return;
-      allow_stamp[k] = allow_calls;
-      if (allow[k].isZero(0.0)) allow_list.push_back(static_cast<std::uint32_t>(k));
-      allow[k] += f * def.dt;
+      if (allow[k] == 0.0) allow_list.push_back(static_cast<std::uint32_t>(k));
+      allow[k] += a;
     });
-  }
-  // The part of a sleeper's load change d that its woken neighbours' static loads allow: along the
-  // allowed direction, between 0 and the allowed magnitude.
-  Vec3 allowed(std::size_t k, const Vec3& d) const {
-    if (k >= allow.size() || allow[k].isZero(0.0)) return Vec3::Zero();
-    const double a = allow[k].norm();
-    const Vec3 u = allow[k] / a;
-    return std::clamp(d.dot(u), 0.0, a) * u;
-  }
-  void clear_allowances() {
-    for (const std::uint32_t k : allow_list) allow[k].setZero();
-    allow_list.clear();
   }
   bool block_moving(const BlockSlot& s) const {
     const double v = def.far_sleep.speed;
@@ -724,7 +696,7 @@ struct RigidWorld::Impl {
       if (woken[k] || reset[k] || moving[k]) {
         const bool was_asleep = state[k] & kAsleep;
         wake(blocks[k]);
-        if (was_asleep) allow_neighbours(blocks[k], static_load(blocks[k]).first);
+        if (was_asleep) allow_neighbours(blocks[k]);
       } else if (!(state[k] & kAsleep)) {
         BlockSlot& s = blocks[k];
         s.still += h;

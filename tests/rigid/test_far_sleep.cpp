@@ -190,7 +190,7 @@ TEST(FarSleep, ChainOfContactsWakesInTime) {
   // (check_sleepers), so the row moves as with every floe awake.
   const RowResult r = row_against_awake("contact chain", false);
   EXPECT_GT(r.last_x - r.first_awake_x, 0.0);
-  EXPECT_LT(r.worst, 1e-12);  // m; measured 2.3e-14 since stop 43 (1.8e-14 before a block woken for a repeat brought its weight; 9.7e-3 when a woken floe was not solved again)
+  EXPECT_LT(r.worst, 1e-12);  // m; measured 1.8e-14 (9.7e-3 when a woken floe was not solved again)
 }
 
 TEST(FarSleep, ChainOfContactsStartedAsleepWakesInTime) {
@@ -206,13 +206,14 @@ TEST(FarSleep, ChainOfJointsWakesInTime) {
   const double worst = row_against_awake("joint chain", true).worst;
   // (1.3e-11 before the woken floes' contacts with sleeping ones were collided again before the
   // repeat, collide_with_inactive: the refreshed points move the result in the last bits)
-  EXPECT_LT(worst, 6e-10);  // m; measured 5.5e-11 since stop 43 (6.0e-11 before; 1.3e-3 when a woken floe was not solved again)
+  EXPECT_LT(worst, 6e-10);  // m; measured 6.0e-11 (1.3e-3 when a woken floe was not solved again)
 }
 
 // A row of dry blocks on a fixed floor (no water), asleep, the first pushed at 1 m/s: each block the
-// push reaches wakes in a repeated solve and must bring its weight into that solve (the force pass
-// that gave the other blocks theirs ran before it); its floor contact and friction then act as
-// with every block awake.
+// push reaches wakes in a repeated solve. The rule's error (1) (docs/rigid.md): a block woken for a
+// repeat has no weight in that sub-step (the force pass that gave the other blocks theirs ran
+// before the solve), so its floor contact and friction differ from the all-awake row's for one
+// sub-step.
 TEST(FarSleep, ChainOfDryBlocksOnAFloorWakesInTime) {
   constexpr int n = 5;
   auto row = [&](bool on) {
@@ -242,11 +243,9 @@ TEST(FarSleep, ChainOfDryBlocksOnAFloorWakesInTime) {
   double worst = 0.0;
   for (int i = 0; i < n; ++i) worst = std::max(worst, (on[i] - off[i]).norm());
   EXPECT_GT(off.back().x() - (n - 1.0), 0.005);  // the push reached the last block (7.0 mm)
-  // m; measured 1.06e-4, 3.7e-4 when a block woken for a repeat is solved weightless. The limit is 2x
-  // the measured error, not 10x, so that the test fails without the weight; what is left comes from
-  // the woken blocks' floor contacts, which start the repeat without the warm-started impulses they
-  // have when every block is awake.
-  EXPECT_LT(worst, 2e-4);
+  // m; measured 3.7e-4 (1.1e-4 with the weight given before the repeat: tried in stop 43 and taken
+  // back, docs/rigid.md "Stop 43"); 7e-3 without the repeated solve, the last block never reached.
+  EXPECT_LT(worst, 4e-3);
   std::printf("[ far sleep ] dry chain on a floor: last block moved %.4f m (all awake %.4f m); worst difference %.2e m\n",
               on.back().x() - (n - 1.0), off.back().x() - (n - 1.0), worst);
 }
@@ -258,7 +257,7 @@ TEST(FarSleep, ChainsWakeInTimeWithoutHops) {
   const double contacts = row_against_awake("contact chain, no hops", false, true, 0).worst;
   const double joints = row_against_awake("joint chain, no hops", true, false, 0).worst;
   EXPECT_LT(contacts, 1e-12);  // m; measured 2.3e-14, as with 4 hops (7.3e-2 without the repeated solve)
-  EXPECT_LT(joints, 6e-10);    // m; measured 5.5e-11, as with 4 hops (7.2e-2 without the repeated solve)
+  EXPECT_LT(joints, 6e-10);    // m; measured 6.0e-11, as with 4 hops (7.2e-2 without the repeated solve)
 }
 
 // An awake floe beside a sleeping one (wake_hops 0: only the solve itself can wake it), the awake
