@@ -344,13 +344,10 @@ inline void touch_test(Block& b, std::uint32_t* apart, const ContactPair* pairs,
     transpose8x4(c, Xj, Yj, Zj, Rj);
     const __m512d DX = _mm512_sub_pd(Xj, Xi), DY = _mm512_sub_pd(Yj, Yi), DZ = _mm512_sub_pd(Zj, Zi);
     const __m512d RS = _mm512_add_pd(Ri, Rj);
-    // (dx dx + dy dy) + dz dz with the last product fused: the sum the scalar loop's
-    // d.squaredNorm() makes, so both decide alike which pairs touch
-    // (GCC would contract mul + add of intrinsics into an FMA; the empty asm keeps the
-    // products rounded)
-    __m512d xx = _mm512_mul_pd(DX, DX), yy = _mm512_mul_pd(DY, DY);
-    asm("" : "+v"(xx), "+v"(yy));
-    const __m512d d2 = _mm512_fmadd_pd(DZ, DZ, _mm512_add_pd(xx, yy));
+    // (dx dx + dy dy) + dz dz: the sum the scalar loop's d.squaredNorm() makes, so both decide
+    // alike which pairs touch
+    const __m512d xx = _mm512_mul_pd(DX, DX), yy = _mm512_mul_pd(DY, DY);
+    const __m512d d2 = _mm512_add_pd(_mm512_mul_pd(DZ, DZ), _mm512_add_pd(xx, yy));
     const __mmask8 touch = _mm512_cmp_pd_mask(d2, _mm512_mul_pd(RS, RS), _CMP_LT_OQ);
     const __m256i idx = _mm256_add_epi32(_mm256_set1_epi32(static_cast<int>(p0 + q)), _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
     _mm512_storeu_pd(b.dx + m, _mm512_maskz_compress_pd(touch, DX));

@@ -30,9 +30,7 @@ struct ContactLawList {};
 using ContactLaws = ContactLawList<LinearLaw, HertzLaw>;
 
 namespace detail {
-// Always inlined: the dispatch must cost the call sites nothing, not even a change in what the
-// compiler inlines around them (the results are pinned bit for bit, and inlining decides where
-// multiply-adds are fused).
+// Always inlined: the dispatch must cost the call sites nothing.
 template <class Def, class F, class Law, class... Rest>
 [[gnu::always_inline]] inline decltype(auto) dispatch_contact_law(const Def& def, F& f, ContactLawList<Law, Rest...>) {
   if constexpr (sizeof...(Rest) == 0) {

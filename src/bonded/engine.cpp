@@ -18,20 +18,6 @@ namespace hs::bonded {
 
 namespace {
 
-// The pair loop is instantiated per law with this file-local wrapper: each instantiation then has
-// internal linkage and one caller, so the compiler inlines it into evaluate_forces, as it did
-// when the laws were file-local types. Inlining decides where multiply-adds are fused (and, through
-// the unit's growth budget, what else is inlined in this file), and the run outputs are pinned
-// bit for bit (tools/series_hash.py): keep the compiled shape when changing the force paths.
-template <class Law>
-struct PairLaw {
-  Law law;
-  ContactResult force(double delta, double r_star, const Vec3& n, double vn, const Vec3& vt, double m_eff, double dt,
-                      Vec3& xi) const {
-    return law.force(delta, r_star, n, vn, vt, m_eff, dt, xi);
-  }
-  double energy(double delta, double r_star, const Vec3& xi) const { return law.energy(delta, r_star, xi); }
-};
 
 }  // namespace
 
@@ -604,9 +590,7 @@ void Engine::field_forces() {
 ContactResult Engine::wall_contact(double delta, double r, const Vec3& n, double vn, const Vec3& vt,
                                    double m, double friction, Vec3& xi) const {
   // A wall is a sphere of infinite radius and mass: R* = r, m_eff = m.
-  // always_inline: the early inliner then sees the body it saw before the law dispatch (copy the
-  // parameters, set mu, call the law), and so makes the same choices (see PairLaw above).
-  return with_contact_law(def_, [&](const auto& law) __attribute__((always_inline)) {
+  return with_contact_law(def_, [&](const auto& law) {
     return law.with_friction(friction).force(delta, r, n, vn, vt, m, history_dt_, xi);
   });
 }
@@ -849,7 +833,7 @@ void Engine::evaluate_forces(double history_dt, bool finish) {
     if constexpr (std::is_same_v<L, LinearLaw> || std::is_same_v<L, HertzLaw>)
       pair_kernel(law);  // contact_kernel.cpp
     else
-      pair_forces(PairLaw<L>{law});  // a law without a vectorised kernel
+      pair_forces(law);  // a law without a vectorised kernel
   });
   bond_forces();
   if (!crushed_.empty()) crushed_forces();  // engine_crushed.cpp
@@ -1094,12 +1078,8 @@ EnergyReport Engine::energy() const {
     const double dist = (ps_.x[p.j] - ps_.x[p.i]).norm();
     if (dist >= rs) continue;
     const double rstar = ps_.radius[p.i] * ps_.radius[p.j] / rs;
-    // Written as a conditional on the model rather than through with_contact_law: that is the form
-    // in which GCC fuses this sum's multiply-adds as it did before the dispatch, and the energy
-    // series is pinned bit for bit (each lambda form tried fused the other product; docs/engine.md).
-    e.contact_elastic += def_.contact_model == ContactModel::LinearSpringDashpot
-                             ? PairLaw<LinearLaw>{LinearLaw::from_def(def_)}.energy(rs - dist, rstar, p.xi)
-                             : PairLaw<HertzLaw>{HertzLaw::from_def(def_)}.energy(rs - dist, rstar, p.xi);
+    e.contact_elastic +=
+        with_contact_law(def_, [&](const auto& law) { return law.energy(rs - dist, rstar, p.xi); });
   }
   if (!crushed_.empty()) e.contact_elastic += crushed_energy();
   if (parallel()) {  // every bond and contact pair lives on exactly one rank

@@ -220,10 +220,8 @@ struct LatticeInsert {
   /// Drop the sites that would start in contact overlap with existing particles
   /// (Engine::overlapping_sites), and their bonds.
   bool drop_overlapping = true;
-  /// sites.push_back(p), out of line on purpose: with -march=native GCC contracts the caller's
-  /// site arithmetic into FMAs differently when push_back inlines into its loop (the converter's
-  /// velocities moved by 1 ulp); a loop calling this compiles like one calling add_particle.
-  void add_site(const ParticleInit& p);
+  /// Appends a site.
+  void add_site(const ParticleInit& p) { sites.push_back(p); }
 };
 
 /// What Engine::insert_lattice did: the same on every rank, figures over all ranks.

@@ -27,7 +27,6 @@
 
 namespace hs::bonded {
 
-void LatticeInsert::add_site(const ParticleInit& p) { sites.push_back(p); }
 
 std::vector<char> Engine::overlapping_sites(const std::vector<Vec3>& x, const std::vector<double>& radius) const {
   if (radius.size() != x.size()) throw std::invalid_argument("overlapping_sites: one radius per site");

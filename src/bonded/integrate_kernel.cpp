@@ -56,14 +56,10 @@ inline __m512d squared_lengths(__m512d q0, __m512d q1, __m512d q2) {
   const __m512d X = _mm512_permutex2var_pd(tx, _mm512_set_epi64(13, 10, 5, 4, 3, 2, 1, 0), q2);
   const __m512d Y = _mm512_permutex2var_pd(ty, _mm512_set_epi64(14, 11, 8, 4, 3, 2, 1, 0), q2);
   const __m512d Z = _mm512_permutex2var_pd(tz, _mm512_set_epi64(15, 12, 9, 4, 3, 2, 1, 0), q2);
-  // (x x + y y) + z z with the last product fused: the sum GCC makes of the scalar tail's
-  // squaredNorm (and of the Vec3 loops before), so every particle's figure is the same bits
-  // wherever it falls (vector body or tail: under MPI that depends on the rank's count)
-  // (GCC would contract mul + add of intrinsics into an FMA; the empty asm keeps the products
-  // rounded)
-  __m512d xx = _mm512_mul_pd(X, X), yy = _mm512_mul_pd(Y, Y);
-  asm("" : "+v"(xx), "+v"(yy));
-  return _mm512_fmadd_pd(Z, Z, _mm512_add_pd(xx, yy));
+  // (x x + y y) + z z, the sum the scalar tail's squaredNorm makes, so every particle's figure is
+  // the same bits wherever it falls (vector body or tail: under MPI that depends on the rank's count)
+  const __m512d xx = _mm512_mul_pd(X, X), yy = _mm512_mul_pd(Y, Y);
+  return _mm512_add_pd(_mm512_mul_pd(Z, Z), _mm512_add_pd(xx, yy));
 }
 
 // The largest lane (GCC 12's _mm512_reduce_max_pd trips -Wuninitialized in its own header).
@@ -86,15 +82,15 @@ inline void kick8(const Spread& spread, __m512d H, std::size_t i, Vec3* v, Vec3*
   __m512d a0, a1, a2, b0, b1, b2;
   spread(_mm512_mul_pd(H, _mm512_loadu_pd(im + i)), a0, a1, a2);
   spread(_mm512_mul_pd(H, _mm512_loadu_pd(ii + i)), b0, b1, b2);
-  v0 = _mm512_fmadd_pd(a0, _mm512_loadu_pd(F), _mm512_loadu_pd(V));
-  v1 = _mm512_fmadd_pd(a1, _mm512_loadu_pd(F + 8), _mm512_loadu_pd(V + 8));
-  v2 = _mm512_fmadd_pd(a2, _mm512_loadu_pd(F + 16), _mm512_loadu_pd(V + 16));
+  v0 = _mm512_add_pd(_mm512_mul_pd(a0, _mm512_loadu_pd(F)), _mm512_loadu_pd(V));
+  v1 = _mm512_add_pd(_mm512_mul_pd(a1, _mm512_loadu_pd(F + 8)), _mm512_loadu_pd(V + 8));
+  v2 = _mm512_add_pd(_mm512_mul_pd(a2, _mm512_loadu_pd(F + 16)), _mm512_loadu_pd(V + 16));
   _mm512_storeu_pd(V, v0);
   _mm512_storeu_pd(V + 8, v1);
   _mm512_storeu_pd(V + 16, v2);
-  _mm512_storeu_pd(W, _mm512_fmadd_pd(b0, _mm512_loadu_pd(T), _mm512_loadu_pd(W)));
-  _mm512_storeu_pd(W + 8, _mm512_fmadd_pd(b1, _mm512_loadu_pd(T + 8), _mm512_loadu_pd(W + 8)));
-  _mm512_storeu_pd(W + 16, _mm512_fmadd_pd(b2, _mm512_loadu_pd(T + 16), _mm512_loadu_pd(W + 16)));
+  _mm512_storeu_pd(W, _mm512_add_pd(_mm512_mul_pd(b0, _mm512_loadu_pd(T)), _mm512_loadu_pd(W)));
+  _mm512_storeu_pd(W + 8, _mm512_add_pd(_mm512_mul_pd(b1, _mm512_loadu_pd(T + 8)), _mm512_loadu_pd(W + 8)));
+  _mm512_storeu_pd(W + 16, _mm512_add_pd(_mm512_mul_pd(b2, _mm512_loadu_pd(T + 16)), _mm512_loadu_pd(W + 16)));
 }
 #endif
 
@@ -121,9 +117,9 @@ double kick_drift(std::size_t n, double dt, double hdt, Vec3* x, Vec3* v, Vec3* 
     __m512d v0, v1, v2, m0, m1, m2;
     kick8(spread, H, i, v, w, f, t, im, ii, v0, v1, v2);
     spread(_mm512_loadu_pd(mass + i), m0, m1, m2);
-    const __m512d x0 = _mm512_fmadd_pd(DT, v0, _mm512_loadu_pd(X));
-    const __m512d x1 = _mm512_fmadd_pd(DT, v1, _mm512_loadu_pd(X + 8));
-    const __m512d x2 = _mm512_fmadd_pd(DT, v2, _mm512_loadu_pd(X + 16));
+    const __m512d x0 = _mm512_add_pd(_mm512_mul_pd(DT, v0), _mm512_loadu_pd(X));
+    const __m512d x1 = _mm512_add_pd(_mm512_mul_pd(DT, v1), _mm512_loadu_pd(X + 8));
+    const __m512d x2 = _mm512_add_pd(_mm512_mul_pd(DT, v2), _mm512_loadu_pd(X + 16));
     _mm512_storeu_pd(X, x0);
     _mm512_storeu_pd(X + 8, x1);
     _mm512_storeu_pd(X + 16, x2);
@@ -178,8 +174,6 @@ double kick(std::size_t n, double hdt, Vec3* v, Vec3* w, const Vec3* f, const Ve
   return nan ? std::nan("") : worst;
 }
 
-// Not inlined into orientation_kernel.cpp, which is compiled without contraction: the series and
-// the cos/sin branch keep the fused operations GCC chooses here (the kernel copies them).
 void rotate_orientation(Quat& q, const Vec3& w, double dt) {
   const double wn2 = w.squaredNorm();
   if (wn2 == 0.0) return;

@@ -1,9 +1,8 @@
 // The velocity-Verlet integrator's two passes over the owned particles (Engine::step). With
 // AVX-512 eight particles at a time (their Vec3s are 24 packed doubles, three registers); without
 // it, and for the last n % 8, the Vec3 loops they replaced. Each particle's arithmetic is what
-// the Vec3 loops did (a product times a vector added with one fused multiply-add; squared
-// lengths as (x x + y y) + z z, the last product fused), so the state and both maxima are
-// bit-identical to those loops.
+// the Vec3 loops do (nothing fused; squared lengths as (x x + y y) + z z), so the state and both
+// maxima are bit-identical to those loops.
 #pragma once
 
 #include "common/types.h"
@@ -31,8 +30,8 @@ constexpr double kOrientationSeriesH2 = 1e-4;
 /// normalises it; w = 0 leaves q unchanged.
 void rotate_orientation(Quat& q, const Vec3& w, double dt);
 
-/// rotate_orientation for particles [0, n), four at a time where the target has AVX and FMA
-/// (orientation_kernel.cpp): bit-identical to it with GCC 12.
+/// rotate_orientation for particles [0, n), four at a time where the target has AVX
+/// (orientation_kernel.cpp): bit-identical to it.
 void rotate_orientations(std::size_t n, Quat* q, const Vec3* w, double dt);
 
 }  // namespace hs::bonded

@@ -2,15 +2,11 @@
 // rotate_orientations).
 //
 // Each particle's update is rotate_orientation's series branch (integrate_kernel.cpp), lane by
-// lane: the same operations in the same order, with a fused multiply-add exactly where GCC 12
-// fuses the scalar code (|w|^2 = (x x + y y) fused with z z; cos's first term 1 - h2/2 fused; the
-// Hamilton product as Eigen 3.4's SSE path computes it, four fused products; the norm as
-// (x x + z z) + (y y + w w), then sqrt and four divisions). This file is compiled with
-// -ffp-contract=off (src/bonded/CMakeLists.txt), so the compiler fuses nothing else: the fused
-// operations are the explicit _mm256_fmadd/fnmadd calls below. With GCC 12 the result is
-// therefore bit-identical to the scalar function (IntegrateKernel.Orientation* in tests/bonded/test_integrate_kernel.cpp check it, so
-// the pinned runs keep their hashes); the scalar loop cost ~22 ns per particle, almost all of it
-// the series' and the norm's divisions, which four lanes share.
+// lane: the same operations in the same order (the Hamilton product as Eigen 3.4 computes it, the
+// norm as (x x + z z) + (y y + w w), then sqrt and four divisions). Nothing is fused (the build's
+// -ffp-contract=off), so the result is bit-identical to the scalar function with any compiler
+// (IntegrateKernel.Orientation* in tests/bonded/test_integrate_kernel.cpp); the scalar loop costs
+// ~22 ns per particle, almost all of it the series' and the norm's divisions, which four lanes share.
 //
 // Which path a particle takes depends on its own data only (w = 0: unchanged; a rotation too large
 // for the series: the scalar function), and the last n % 4 particles run through the same
@@ -18,7 +14,7 @@
 // count.
 #include "integrate_kernel.h"
 
-#if defined(__AVX__) && defined(__FMA__)
+#if defined(__AVX__)
 #include <immintrin.h>
 #define HS_ORIENTATION_AVX 1
 #endif
@@ -46,10 +42,10 @@ inline void rotate4(Quat* q, const Vec3* w, double dt) {
   const __m256d one = _mm256_set1_pd(1.0), half = _mm256_set1_pd(0.5);
   const __m256d vdt = _mm256_set1_pd(dt);
   // |w|^2, h2 = (|w| dt / 2)^2, and the series of rotate_orientation.
-  const __m256d wn2 = _mm256_fmadd_pd(wz, wz, _mm256_add_pd(_mm256_mul_pd(wx, wx), _mm256_mul_pd(wy, wy)));
+  const __m256d wn2 = _mm256_add_pd(_mm256_mul_pd(wz, wz), _mm256_add_pd(_mm256_mul_pd(wx, wx), _mm256_mul_pd(wy, wy)));
   const __m256d h2 = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(wn2, _mm256_set1_pd(0.25)), vdt), vdt);
   const __m256d h4 = _mm256_mul_pd(h2, h2), h6 = _mm256_mul_pd(h2, h4);
-  const __m256d c = _mm256_sub_pd(_mm256_add_pd(_mm256_fnmadd_pd(h2, half, one), _mm256_div_pd(h4, _mm256_set1_pd(24.0))),
+  const __m256d c = _mm256_sub_pd(_mm256_add_pd(_mm256_sub_pd(one, _mm256_mul_pd(h2, half)), _mm256_div_pd(h4, _mm256_set1_pd(24.0))),
                                   _mm256_div_pd(h6, _mm256_set1_pd(720.0)));
   const __m256d sin_series =
       _mm256_sub_pd(_mm256_add_pd(_mm256_sub_pd(one, _mm256_div_pd(h2, _mm256_set1_pd(6.0))), _mm256_div_pd(h4, _mm256_set1_pd(120.0))),
@@ -63,10 +59,10 @@ inline void rotate4(Quat* q, const Vec3* w, double dt) {
   // r = dq q, dq = (c, s w).
   const __m256d cqx = _mm256_mul_pd(c, qx), cqy = _mm256_mul_pd(c, qy), cqz = _mm256_mul_pd(c, qz), cqw = _mm256_mul_pd(c, qw);
   const __m256d zqx = _mm256_mul_pd(sz, qx), zqy = _mm256_mul_pd(sz, qy), zqz = _mm256_mul_pd(sz, qz), zqw = _mm256_mul_pd(sz, qw);
-  __m256d rx = _mm256_sub_pd(_mm256_fmadd_pd(qz, sy, cqx), _mm256_fnmadd_pd(qw, sx, zqy));
-  __m256d ry = _mm256_add_pd(_mm256_fmadd_pd(qw, sy, cqy), _mm256_fnmadd_pd(qz, sx, zqx));
-  __m256d rz = _mm256_add_pd(_mm256_fnmadd_pd(sy, qx, cqz), _mm256_fmadd_pd(qy, sx, zqw));
-  __m256d rw = _mm256_sub_pd(_mm256_fnmadd_pd(sy, qy, cqw), _mm256_fmadd_pd(qx, sx, zqz));
+  __m256d rx = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(qz, sy), cqx), _mm256_sub_pd(zqy, _mm256_mul_pd(qw, sx)));
+  __m256d ry = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(qw, sy), cqy), _mm256_sub_pd(zqx, _mm256_mul_pd(qz, sx)));
+  __m256d rz = _mm256_add_pd(_mm256_sub_pd(cqz, _mm256_mul_pd(sy, qx)), _mm256_add_pd(_mm256_mul_pd(qy, sx), zqw));
+  __m256d rw = _mm256_sub_pd(_mm256_sub_pd(cqw, _mm256_mul_pd(sy, qy)), _mm256_add_pd(_mm256_mul_pd(qx, sx), zqz));
   // Normalised where the norm is positive (as Eigen's normalize()).
   const __m256d n2 = _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(rx, rx), _mm256_mul_pd(rz, rz)),
                                    _mm256_add_pd(_mm256_mul_pd(ry, ry), _mm256_mul_pd(rw, rw)));

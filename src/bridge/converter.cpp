@@ -361,7 +361,7 @@ ConversionReport convert_block(bonded::Engine& engine, const BlockState& block, 
     pi.mass = m;
     pi.buoyant_volume = Vb;
     pi.material = mat.material;
-    lat.add_site(pi);  // (out of line: see LatticeInsert::add_site)
+    lat.add_site(pi);
   }
   lat.bonds = touching_pairs(kept, std::vector<double>(kept.size(), r));
   lat.kind = BondKind::Lattice;

@@ -72,9 +72,8 @@ double reach(const Vec3& h, const Mat3& R, const Vec3& e) {
   return h.x() * std::abs(R.col(0).dot(e)) + h.y() * std::abs(R.col(1).dot(e)) +
          h.z() * std::abs(R.col(2).dot(e));
 }
-// noinline: where it was inlined, GCC fused other products of reach() into FMAs (-march=native), and
-// the ridge profile moved by 1 ulp when the surrounding code was refactored (docs/engine.md, FMA).
-[[gnu::noinline]] Vec3 aabb_half(const Vec3& h, const Mat3& R) {
+/// Half extents of the box's axis-aligned bounding box.
+Vec3 aabb_half(const Vec3& h, const Mat3& R) {
   return Vec3(reach(h, R, Vec3::UnitX()), reach(h, R, Vec3::UnitY()), reach(h, R, Vec3::UnitZ()));
 }
 

@@ -46,20 +46,9 @@ bool same_bits(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
 
 bool same_bits(double a, double b) { return std::memcmp(&a, &b, sizeof a) == 0; }
 
-// |a|^2 as GCC compiles Eigen's squaredNorm of a Vec3 in the engine's loops (objdump of
-// Engine::step before integrate_kernel and of its scalar tail: vmulpd (x x, y y), vaddsd, then
-// vfmadd z z): (x x + y y) + z z with the last product fused. Written out with contraction off,
-// so that the test's own compilation cannot regroup it.
-#pragma GCC push_options
-#pragma GCC optimize("fp-contract=off")
-double squared_norm_as_compiled(const Vec3& a) {
-#ifdef __FMA__
-  return std::fma(a.z(), a.z(), a.x() * a.x() + a.y() * a.y());
-#else  // a target without FMA (the portable build) fuses nothing
-  return (a.x() * a.x() + a.y() * a.y()) + a.z() * a.z();
-#endif
-}
-#pragma GCC pop_options
+// |a|^2 as Eigen's squaredNorm of a Vec3 computes it with nothing fused (the build's
+// -ffp-contract=off): (x x + y y) + z z.
+double squared_norm_as_compiled(const Vec3& a) { return (a.x() * a.x() + a.y() * a.y()) + a.z() * a.z(); }
 
 constexpr double kDt = 4.8e-5, kHdt = 0.5 * kDt;
 const Vec3 kG(0.0, 0.0, -9.81);
@@ -121,8 +110,8 @@ TEST(IntegrateKernel, NaNIsReportedByKickAndIgnoredByTheDisplacement) {
 
 // The orientation update (orientation_kernel.cpp) against the scalar update it replaced, bit for
 // bit: spins of up to 350 rad/s (|w| dt / 2 < 0.0083: the series; spins this fast make the
-// rotation's products large enough to reach the last bit: with one Hamilton-product term unfused
-// this test fails, checked; a regrouped |w|^2 moves h2 by one bit only, which seldom shows), none
+// rotation's products large enough to reach the last bit: with one Hamilton-product term fused
+// this test fails; a regrouped |w|^2 moves h2 by one bit only, which seldom shows), none
 // (unchanged), and 1000 rad/s (|w| dt / 2 = 0.024: cos and sin, the scalar fallback), in blocks of
 // four and the tail.
 std::vector<Vec3> spins(std::size_t n, std::mt19937_64& rng) {
@@ -147,11 +136,6 @@ bool same_bits(const std::vector<Quat>& a, const std::vector<Quat>& b) {
 }
 
 TEST(IntegrateKernel, OrientationUpdateIsTheScalarUpdateBitForBit) {
-#if defined(__AVX__) && defined(__FMA__) && (defined(__clang__) || !defined(__GNUC__) || __GNUC__ != 12)
-  // The lanes copy the fused operations GCC 12 chooses for the scalar update; another compiler may
-  // fuse the scalar code differently (results then differ in the last bit, as PinnedRun's would).
-  GTEST_SKIP() << "the lanes are matched to GCC 12's scalar code";
-#endif
   for (unsigned seed = 1; seed <= 50; ++seed) {
     std::mt19937_64 rng(seed);
     const std::vector<Vec3> w = spins(37, rng);
