@@ -35,11 +35,11 @@ struct Pinned {
 // "calibrated" changes the springs (k_n 2.5x Eq. 1, k_s 0.05 k_n for nu = 0.3), the one water law
 // changes the drag (per wetted face), /series/pile_height_mean is new, and the vectorised bond and
 // contact kernels round differently (each checked alone against the old output: round-off only).
-// Re-pinned for issue 16 (stop 32): the plane walls' vectorised kernel rounds differently from the
+// Re-pinned for issue 16: the plane walls' vectorised kernel rounds differently from the
 // scalar wall law (sqrt(m) sqrt(k) for sqrt(m k), the pair kernel's spring projection); against the
 // previous hashes' output the largest difference is 1.3e-12 of a dataset's largest value (snapshot
 // velocities; series 8e-14).
-// Re-pinned in stop 37: /series/max_overlap_ratio is new. With it deleted from the output
+// Re-pinned when /series/max_overlap_ratio was added. With it deleted from the output
 // (h5py) both files hash to the previous pins exactly (dd44b268... / ac18818a..., and for
 // paper_eq1 c852c464... / 46aaebf1...): every other dataset is bit-identical.
 constexpr Pinned kPinned[] = {
