@@ -29,7 +29,7 @@ struct BenchOptions {
   /// block asleep): what holding the ridge costs when nothing happens near it.
   bool idle = false;
   /// hybrid: the ridge as generated (under fixed boxes), not settled again in the bench's world
-  /// (its sheet and pier): the bench before stop 43, whose ridge is in motion there.
+  /// (its sheet and pier): that ridge is in motion there.
   bool as_generated = false;
   /// hybrid: the pier's axis x, m (NaN: 3 m outside the keel's -x toe); the sheet spans
   /// [x + 7.5, x + 34] m in front of it.

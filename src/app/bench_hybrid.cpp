@@ -1,10 +1,10 @@
 // `hybridsim bench hybrid`: the rigid world at the paper's scale (docs/rigid.md, "Far sleep" and
-// "Stop 43: the rule at scale, and the bench's ridge at rest").
+// "The bench's ridge at rest").
 //
 // The scene: the paper-size ridge (scenes/ridge_paper_size.json: ~28,000 keel and ~1,500 sail blocks,
 // ~78,000 freeze joints, 200 m along y) with the parametric pier half-way along it (y = 100 m), its
-// axis 3 m outside the keel's -x toe (x = -70.1 m on the paper-size ridge; --pier-x moves it: until
-// stop 43 it stood at x = -34 m, 33 m into the keel), moving into the ridge at 0.4 m/s; a bonded
+// axis 3 m outside the keel's -x toe (x = -70.1 m on the paper-size ridge; --pier-x moves it; x = -34 m
+// is 33 m into the keel), moving into the ridge at 0.4 m/s; a bonded
 // particle sheet (the keel cone scene's: 0.6 m level ice, with the 0.9 m consolidated layer where it
 // reaches the band, D = 0.25 m, calibrated E = 1e7 Pa) 26.5 m long from the pier's waterline on,
 // y = 100 +- 8 m; everywhere else the ridge's own ice cover (the fixed boxes it was generated under)
@@ -119,14 +119,14 @@ std::vector<rigid::IceBox> cover_boxes(const rigid::RidgeResult& r, double hx0, 
 
 /// The pier's default place: its axis 3 m outside the keel's -x toe (the least x of a keel
 /// block's centre), so that its cone, 10.1 m in radius at its base, reaches under the toe's first
-/// blocks: the pier at the ridge, as a ridge interaction starts. (Before stop 43 it stood 33 m
-/// into the keel, at x = -34 m on the paper-size ridge: the 376 blocks it would have reached into
-/// were left out, and the keel slumped into their space for as long as it was settled, docs/rigid.md.)
+/// blocks: the pier at the ridge, as a ridge interaction starts. (With --pier-x -34 it stands 33 m
+/// into the paper-size keel: the 376 blocks it would reach into are left out, and the keel slumps
+/// into their space for as long as it is settled, docs/rigid.md.)
 double default_pier_x(const rigid::RidgeResult& r) {
   double toe = std::numeric_limits<double>::infinity();
   for (const auto& b : r.blocks)
     if (b.part == 0) toe = std::min(toe, b.position.x());
-  return std::isfinite(toe) ? toe - 3.0 : -34.0;  // (no keel block: the place of the bench before stop 43)
+  return std::isfinite(toe) ? toe - 3.0 : -34.0;  // (no keel block: x = -34 m)
 }
 
 /// The bench scene (see the top of this file) for the ridge in `r` (file `path`).
@@ -196,8 +196,8 @@ nlohmann::json bench_scene(const rigid::RidgeResult& r, const std::string& path,
       {"blocks", blocks}};
 }
 
-/// The bench's ridge at rest (docs/rigid.md, "Stop 43: the rule at scale, and the bench's ridge at
-/// rest"): the ridge was generated under fixed boxes, but the bench floats a particle sheet in a
+/// The bench's ridge at rest (docs/rigid.md, "The bench's ridge at rest"): the
+/// ridge was generated under fixed boxes, but the bench floats a particle sheet in a
 /// hole of that cover and stands the pier at (or in) the keel, the blocks it would reach into left
 /// out. Under the sheet the keel's buoyancy, which the boxes held, lifts the sheet and the keel with
 /// it, and around the pier the blocks slide into the space of those left out: a ridge in motion,

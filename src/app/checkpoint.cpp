@@ -153,7 +153,7 @@ namespace {
 /// Float series added to the run file after checkpoints existed: a run file without one still
 /// restarts (its rows up to the checkpoint NaN). Any other missing series is refused.
 bool added_later(const std::string& path) {
-  static const char* const kAddedLater[] = {"/series/max_overlap_ratio"};  // stop 37
+  static const char* const kAddedLater[] = {"/series/max_overlap_ratio"};
   for (const char* p : kAddedLater)
     if (path == p) return true;
   return false;

@@ -118,8 +118,8 @@ int main(int argc, char** argv) {
                   "hybrid: pier and particle sheet 300 m from the ridge, every block asleep: the cost of holding "
                   "the ridge while nothing happens near it");
   bench->add_option("--pier-x", bench_opt.pier_x,
-                    "hybrid: the pier's axis x, m (default: 3 m outside the keel's toe; -34 was the bench's until "
-                    "stop 43, 33 m into the paper-size keel)");
+                    "hybrid: the pier's axis x, m (default: 3 m outside the keel's toe; -34 stands it 33 m "
+                    "into the paper-size keel)");
   bench->add_flag("--as-generated", bench_opt.as_generated,
                   "hybrid: the ridge as generated, not settled again under the bench's sheet and pier first "
                   "(that ridge is in motion in the bench's world; docs/rigid.md)");

@@ -189,7 +189,7 @@ Session::Session(int* argc, char*** argv) : mpi_(launched_by_mpi()) {
   // Ghost updates are one message of tens to hundreds of KB per neighbour and step. Open MPI's
   // shared-memory transport sends those through a kernel single copy (CMA, process_vm_readv),
   // one system call per message; copying through its shared buffers instead made the 2-rank
-  // granular benchmark ~6 % faster (stop 34, docs/parallel.md "Transport"). Not when the user's
+  // granular benchmark ~6 % faster (docs/parallel.md "Transport"). Not when the user's
   // environment sets it, under this name or Open MPI 5's (btl sm); a value set only in an
   // mca-params.conf file loses to this one.
   if (std::getenv("OMPI_MCA_btl_vader_single_copy_mechanism") == nullptr &&

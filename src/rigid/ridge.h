@@ -256,8 +256,8 @@ using RidgeProgressFn = std::function<void(const RidgeProgress&)>;
 /// aside). Throws hs::InputError for an impossible definition.
 RidgeResult generate_ridge(const RidgeDef& def, const RidgeProgressFn& progress = {});
 
-/// Settling an existing ridge again under another ice cover (docs/rigid.md, "Stop 43: the rule at
-/// scale, and the bench's ridge at rest"): a ridge generated under fixed boxes is not at rest where a run floats a particle
+/// Settling an existing ridge again under another ice cover (docs/rigid.md, "The bench's ridge at
+/// rest"): a ridge generated under fixed boxes is not at rest where a run floats a particle
 /// sheet instead (the sheet must carry the keel's buoyancy that the boxes held), nor around a
 /// structure placed into it. The blocks whose centre lies in [region_lo, region_hi] move; every
 /// other block is held where it is (a fixed body, as far sleep holds it in the run).

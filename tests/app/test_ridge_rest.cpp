@@ -163,7 +163,7 @@ void expect_restart_continues(const std::string& extra, const std::string& name)
   expect_same_series(work_dir() / name, work_dir() / (stem + "_b.h5"));
 }
 
-// Measured (never and hybrid alike: nothing converts; stop 41, mean speeds as path lengths):
+// Measured (never and hybrid alike: nothing converts; mean speeds as path lengths):
 // after 4 s no joint, freeze bond or lattice bond broken, fastest block 3.64e-5 m/s mean over the
 // last 0.1 s (2.86e-5 at the last step), fastest particle 1.52e-5 m/s (1.13e-5), sheet mean dz
 // -8.9e-6 m. Limits: the issue's (zero breaks,
@@ -208,7 +208,7 @@ TEST(RidgeRest, TheFiguresAreMeanSpeedsOverTheLastTenthOfASecond) {
   // speed at the end g T + w |half diagonal|. Measured: window 0.100712 s (h = 1.199e-3 s), mean
   // 37.215737 m/s against 37.216076 (3.4e-4 apart: the blocks' clock ends a fraction of a rigid
   // step before T), last step 37.703851 against 37.7039. Tolerance 2e-3 m/s (6x). The net
-  // displacement over the window (the figure before stop 41) reads the spin as the 0.045 rad by
+  // displacement over the window (not the path length) reads the spin as the 0.045 rad by
   // which 0.1007 s of it exceeds a whole turn: 4.648576 m/s, 33 m/s short.
   const double w = 20.0 * M_PI, hd = std::sqrt(0.4 * 0.4 + 0.3 * 0.3 + 0.15 * 0.15);
   write_sheet_scene("fall", 0.5, 0.1, R"([{"half_extents": [0.4, 0.3, 0.15], "position": [10.0, 1.0, 20.0],

@@ -243,8 +243,8 @@ TEST(FarSleep, ChainOfDryBlocksOnAFloorWakesInTime) {
   double worst = 0.0;
   for (int i = 0; i < n; ++i) worst = std::max(worst, (on[i] - off[i]).norm());
   EXPECT_GT(off.back().x() - (n - 1.0), 0.005);  // the push reached the last block (7.0 mm)
-  // m; measured 3.7e-4 (1.1e-4 with the weight given before the repeat: tried in stop 43 and taken
-  // back, docs/rigid.md "Stop 43"); 7e-3 without the repeated solve, the last block never reached.
+  // m; measured 3.7e-4 (1.1e-4 with the weight given before the repeat, which is not done:
+  // docs/rigid.md "Far sleep"); 7e-3 without the repeated solve, the last block never reached.
   EXPECT_LT(worst, 4e-3);
   std::printf("[ far sleep ] dry chain on a floor: last block moved %.4f m (all awake %.4f m); worst difference %.2e m\n",
               on.back().x() - (n - 1.0), off.back().x() - (n - 1.0), worst);
