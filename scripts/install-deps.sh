@@ -12,6 +12,7 @@ PKGS=(
   nlohmann-json3-dev libcli11-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   python3 python3-numpy python3-matplotlib python3-h5py
+  universal-ctags                        # tools/function_lengths.sh
 )
 
 missing=()
