@@ -5,11 +5,11 @@
 //   R* = r_i r_j / (r_i + r_j),  a = sqrt(R* delta)
 //   S_n = 2 E* a,   S_t = 8 G* a
 //   F_n = 4/3 E* sqrt(R*) delta^(3/2) - gamma_n v_n
-//   gamma_n = -2 sqrt(5/6) beta sqrt(S_n m_eff),  gamma_t likewise with S_t,
+//   gamma_n = -2 sqrt(5/6) beta sqrt(S_n) sqrt(m_eff),  gamma_t likewise with S_t,
 //   beta = ln(e) / sqrt(ln^2(e) + pi^2)
 //   xi <- rotate(xi) + v_t dt,  F_t = -S_t xi - gamma_t v_t,  |F_t| <= mu max(F_n, 0)
 //
-// Inputs and output follow contact_linear.h (n from i to j, force on j).
+// The shared part (spring history, Coulomb cap) and the sign conventions are contact_lane.h's.
 #pragma once
 
 #include "common/ice_formulas.h"
@@ -34,23 +34,6 @@ struct HertzContactParams {
   }
 };
 
-inline ContactResult hertz_contact(const HertzContactParams& p, double delta, double r_star,
-                                   const Vec3& n, double vn, const Vec3& vt, double m_eff,
-                                   double dt, Vec3& xi) {
-  const double a = std::sqrt(r_star * delta);
-  const double sn = 2.0 * p.e_star * a;
-  const double st = 8.0 * p.g_star * a;
-  constexpr double c = 1.8257418583505538;  // 2*sqrt(5/6)
-  const double gn = -c * p.beta * std::sqrt(sn * m_eff);
-  const double gt = -c * p.beta * std::sqrt(st * m_eff);
-  const double fn = (4.0 / 3.0) * p.e_star * a * delta - gn * vn;
-  rotate_history(xi, n);
-  xi += vt * dt;
-  Vec3 ft = -st * xi - gt * vt;
-  coulomb_cap(ft, xi, vt, st, gt, p.mu, fn > 0.0 ? fn : 0.0);
-  return {fn * n + ft, fn};
-}
-
 /// Normal elastic energy of a Hertz contact: 8/15 E* sqrt(R*) delta^(5/2).
 inline double hertz_contact_energy(const HertzContactParams& p, double delta, double r_star) {
   return (8.0 / 15.0) * p.e_star * std::sqrt(r_star) * std::pow(delta, 2.5);
@@ -61,22 +44,40 @@ struct HertzLaw {
   static constexpr ContactModel kModel = ContactModel::HertzMindlin;
   HertzContactParams p;
   double reference_overlap = 0.02;  ///< overlap / radius at which the time-step check takes the stiffness
+  double c = 0.0;                   ///< -2 sqrt(5/6) beta: gamma = c sqrt(S) sqrt(m_eff)
 
-  template <class Def>
-  [[gnu::always_inline]] static HertzLaw from_def(const Def& d) {
-    return {d.hertz, d.hertz_reference_overlap};
+  static HertzLaw make(const HertzContactParams& p, double reference_overlap) {
+    constexpr double two_sqrt_5_6 = 1.8257418583505538;
+    return {p, reference_overlap, -two_sqrt_5_6 * p.beta};
   }
-  [[gnu::always_inline]] HertzLaw with_friction(double mu) const {
+  template <class Def>
+  static HertzLaw from_def(const Def& d) {
+    return make(d.hertz, d.hertz_reference_overlap);
+  }
+  HertzLaw with_friction(double mu) const {
     HertzLaw l = *this;
     l.p.mu = mu;
     return l;
   }
-  [[gnu::always_inline]] ContactResult force(double delta, double r_star, const Vec3& n, double vn, const Vec3& vt, double m_eff,
-                      double dt, Vec3& xi) const {
-    return hertz_contact(p, delta, r_star, n, vn, vt, m_eff, dt, xi);
+  double friction() const { return p.mu; }
+  /// contact_lane's springs: a = sqrt(R* delta), S_n = 2 E* a, S_t = 8 G* a,
+  /// f_el = 4/3 E* a delta, gamma = c sqrt(S) sqrt(m_eff).
+  [[gnu::always_inline]] void lane_springs(double delta, double rstar, double smeff, double& fel, double& st,
+                                           double& inv_st, double& gn, double& gt) const {
+    const double a = std::sqrt(rstar * (delta > 0.0 ? delta : 0.0));
+    const double sn = 2.0 * p.e_star * a;
+    st = 8.0 * p.g_star * a;
+    inv_st = st > 0.0 ? 1.0 / (st > 0.0 ? st : 1.0) : 0.0;
+    fel = (4.0 / 3.0) * p.e_star * a * delta;
+    gn = c * std::sqrt(sn) * smeff;
+    gt = c * std::sqrt(st) * smeff;
+  }
+  ContactResult force(double delta, double r_star, const Vec3& n, double vn, const Vec3& vt, double m_eff, double dt,
+                      Vec3& xi) const {
+    return contact_force(*this, delta, r_star, n, vn, vt, m_eff, dt, xi);
   }
   /// Normal (Hertz) plus tangential spring energy 1/2 S_t |xi|^2.
-  [[gnu::always_inline]] double energy(double delta, double r_star, const Vec3& xi) const {
+  double energy(double delta, double r_star, const Vec3& xi) const {
     const double st = 8.0 * p.g_star * std::sqrt(r_star * delta);
     return hertz_contact_energy(p, delta, r_star) + 0.5 * st * xi.squaredNorm();
   }

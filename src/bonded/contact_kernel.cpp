@@ -150,82 +150,10 @@ inline void store_columns(const __m256d rows[8], double* X, double* Y, double* Z
 }
 #endif
 
-// The normal spring and the damping coefficients of the two laws, lane by lane.
-struct LinearTag {
-  double kn, kt, inv_kt, cn, ct, mu;  // cn = 2 zeta_n sqrt(kn): gamma_n = cn sqrt(m_eff)
-  // elastic normal force, tangential stiffness (and its inverse, 0 for none), damping for one pair
-  static inline void springs(const LinearTag& l, double delta, double /*rstar*/, double smeff, double& fel, double& st,
-                             double& inv_st, double& gn, double& gt) {
-    fel = l.kn * delta;
-    st = l.kt;
-    inv_st = l.inv_kt;
-    gn = l.cn * smeff;
-    gt = l.ct * smeff;
-  }
-};
-
-struct HertzTag {
-  double e_star, g_star, c, mu;  // c = -2 sqrt(5/6) beta
-  static inline void springs(const HertzTag& l, double delta, double rstar, double smeff, double& fel, double& st,
-                             double& inv_st, double& gn, double& gt) {
-    const double a = std::sqrt(rstar * (delta > 0.0 ? delta : 0.0));
-    const double sn = 2.0 * l.e_star * a;
-    st = 8.0 * l.g_star * a;
-    inv_st = st > 0.0 ? 1.0 / (st > 0.0 ? st : 1.0) : 0.0;
-    fel = (4.0 / 3.0) * l.e_star * a * delta;
-    gn = l.c * std::sqrt(sn) * smeff;
-    gt = l.c * std::sqrt(st) * smeff;
-  }
-};
-
-// The law's common part, one lane (the pair and wall kernels call it inside their vector loops):
-// the normal force, the tangential spring projected onto the tangent plane keeping its length and
-// advanced by vt dt, the Coulomb cap (the spring rewound so that it alone carries the capped
-// force); out: the force on j (fx, fy, fz) and the new spring in xi. A lane with smeff = 0 (two
-// immovable particles, or an idle lane) gets no force and keeps its spring.
-template <class Tag>
-[[gnu::always_inline]] inline void lane_force(const Tag& law, double delta, double rstar, double smeff, double nx,
-                                              double ny, double nz, double vn, double vtx, double vty, double vtz,
-                                              double dt, double& xi_x, double& xi_y, double& xi_z, double& fx,
-                                              double& fy, double& fz) {
-  const bool act = smeff != 0.0;
-  double fel, st, inv_st, gn, gt;
-  Tag::springs(law, delta, rstar, smeff, fel, st, inv_st, gn, gt);
-  const double fn = fel - gn * vn;
-  // spring history: onto the tangent plane keeping its length, then advanced by vt dt
-  double xix = xi_x, xiy = xi_y, xiz = xi_z;
-  const double before = xix * xix + xiy * xiy + xiz * xiz;
-  const double xn = xix * nx + xiy * ny + xiz * nz;
-  xix -= xn * nx;
-  xiy -= xn * ny;
-  xiz -= xn * nz;
-  const double after = xix * xix + xiy * xiy + xiz * xiz;
-  const double keep = after > 0.0 ? std::sqrt(before / (after > 0.0 ? after : 1.0)) : 1.0;
-  xix = xix * keep + vtx * dt;
-  xiy = xiy * keep + vty * dt;
-  xiz = xiz * keep + vtz * dt;
-  double ftx = -st * xix - gt * vtx, fty = -st * xiy - gt * vty, ftz = -st * xiz - gt * vtz;
-  // Coulomb cap; the spring is rewound so that it alone carries the capped force
-  const double ft2 = ftx * ftx + fty * fty + ftz * ftz;
-  const double cap = law.mu * (fn > 0.0 ? fn : 0.0);
-  const bool slip = ft2 > cap * cap;
-  const double s = slip ? cap / std::sqrt(slip ? ft2 : 1.0) : 1.0;
-  ftx *= s;
-  fty *= s;
-  ftz *= s;
-  xix = slip ? -(ftx + gt * vtx) * inv_st : xix;
-  xiy = slip ? -(fty + gt * vty) * inv_st : xiy;
-  xiz = slip ? -(ftz + gt * vtz) * inv_st : xiz;
-  xi_x = act ? xix : xi_x;
-  xi_y = act ? xiy : xi_y;
-  xi_z = act ? xiz : xi_z;
-  fx = act ? fn * nx + ftx : 0.0;
-  fy = act ? fn * ny + fty : 0.0;
-  fz = act ? fn * nz + ftz : 0.0;
-}
-
-template <class Tag>
-void block_law(Block& b, int m, const Tag& law, double dt) {
+// The law for the block's lanes (contact_lane.h); a lane with smeff = 0 (two immovable particles,
+// or an idle lane) gets no force and keeps its spring.
+template <class Law>
+void block_law(Block& b, int m, const Law& law, double dt) {
 #pragma omp simd
   for (int k = 0; k < m; ++k) {
     const double d2 = b.dx[k] * b.dx[k] + b.dy[k] * b.dy[k] + b.dz[k] * b.dz[k];
@@ -245,9 +173,15 @@ void block_law(Block& b, int m, const Tag& law, double dt) {
     const double vn = vx * nx + vy * ny + vz * nz;
     const double vtx = vx - vn * nx, vty = vy - vn * ny, vtz = vz - vn * nz;
     const double rstar = b.ri[k] * b.rj[k] / rs;
-    double fx, fy, fz;
-    lane_force(law, delta, rstar, b.smeff[k], nx, ny, nz, vn, vtx, vty, vtz, dt, b.xix[k], b.xiy[k], b.xiz[k], fx, fy,
-               fz);
+    const bool act = b.smeff[k] != 0.0;
+    double fx, fy, fz, xix = b.xix[k], xiy = b.xiy[k], xiz = b.xiz[k];
+    contact_lane(law, delta, rstar, b.smeff[k], nx, ny, nz, vn, vtx, vty, vtz, dt, xix, xiy, xiz, fx, fy, fz);
+    fx = act ? fx : 0.0;
+    fy = act ? fy : 0.0;
+    fz = act ? fz : 0.0;
+    b.xix[k] = act ? xix : b.xix[k];
+    b.xiy[k] = act ? xiy : b.xiy[k];
+    b.xiz[k] = act ? xiz : b.xiz[k];
     b.fx[k] = fx;
     b.fy[k] = fy;
     b.fz[k] = fz;
@@ -274,8 +208,8 @@ struct WallBlock {
 // particles: a wall is a sphere of infinite radius and mass, so R* = r and m_eff = m; the arm
 // from a particle's centre to the contact point is a = -(r - delta/2) n. A lane with m = 0 is
 // idle (no force).
-template <class Tag>
-void wall_block_law(WallBlock& b, int m, const Tag& law, const Vec3& n, const Vec3& u, double dt) {
+template <class Law>
+void wall_block_law(WallBlock& b, int m, const Law& law, const Vec3& n, const Vec3& u, double dt) {
   const double nx = n.x(), ny = n.y(), nz = n.z();
   const double ux = u.x(), uy = u.y(), uz = u.z();
 #pragma omp simd
@@ -289,9 +223,16 @@ void wall_block_law(WallBlock& b, int m, const Tag& law, const Vec3& n, const Ve
     const double vz = b.vz[k] + (b.wx[k] * ay - b.wy[k] * ax) - uz;
     const double vn = vx * nx + vy * ny + vz * nz;
     const double vtx = vx - vn * nx, vty = vy - vn * ny, vtz = vz - vn * nz;
-    double fx, fy, fz;
-    lane_force(law, delta, b.r[k], std::sqrt(b.m[k]), nx, ny, nz, vn, vtx, vty, vtz, dt, b.xix[k], b.xiy[k], b.xiz[k],
-               fx, fy, fz);
+    const double smeff = std::sqrt(b.m[k]);
+    const bool act = smeff != 0.0;
+    double fx, fy, fz, xix = b.xix[k], xiy = b.xiy[k], xiz = b.xiz[k];
+    contact_lane(law, delta, b.r[k], smeff, nx, ny, nz, vn, vtx, vty, vtz, dt, xix, xiy, xiz, fx, fy, fz);
+    fx = act ? fx : 0.0;
+    fy = act ? fy : 0.0;
+    fz = act ? fz : 0.0;
+    b.xix[k] = act ? xix : b.xix[k];
+    b.xiy[k] = act ? xiy : b.xiy[k];
+    b.xiz[k] = act ? xiz : b.xiz[k];
     b.fx[k] = fx;
     b.fy[k] = fy;
     b.fz[k] = fz;
@@ -471,8 +412,8 @@ const double* Engine::pair_smeff() {
   return pair_smeff_.data();
 }
 
-template <class Tag>
-void Engine::pair_kernel_impl(const Tag& law) {
+template <class Law>
+void Engine::pair_kernel_impl(const Law& law) {
   Vec3* __restrict f = ps_.f.data();
   Vec3* __restrict t = ps_.torque.data();
   const Vec3* x = ps_.x.data();
@@ -540,27 +481,16 @@ void Engine::pair_kernel_impl(const Tag& law) {
   }
 }
 
-namespace {
-LinearTag tag_of(const LinearLaw& law) {
-  const LinearContactParams& p = law.p;
-  return {p.kn, p.kt, p.kt > 0.0 ? 1.0 / p.kt : 0.0, 2.0 * p.zeta_n * std::sqrt(p.kn), 2.0 * p.zeta_t * std::sqrt(p.kt), p.mu};
-}
-HertzTag tag_of(const HertzLaw& law) {
-  const HertzContactParams& p = law.p;
-  constexpr double c = 1.8257418583505538;  // 2 sqrt(5/6)
-  return {p.e_star, p.g_star, -c * p.beta, p.mu};
-}
-}  // namespace
 
-void Engine::pair_kernel(const LinearLaw& law) { pair_kernel_impl(tag_of(law)); }
+void Engine::pair_kernel(const LinearLaw& law) { pair_kernel_impl(law); }
 
-void Engine::pair_kernel(const HertzLaw& law) { pair_kernel_impl(tag_of(law)); }
+void Engine::pair_kernel(const HertzLaw& law) { pair_kernel_impl(law); }
 
 bool Engine::wall_kernel() {
   return with_contact_law(def_, [&](const auto& law) {
     using L = std::decay_t<decltype(law)>;
     if constexpr (std::is_same_v<L, LinearLaw> || std::is_same_v<L, HertzLaw>) {
-      wall_kernel_impl(tag_of(law));
+      wall_kernel_impl(law);
       return true;
     } else {
       return false;  // a law without a vectorised kernel: wall_forces' scalar loop
@@ -568,8 +498,8 @@ bool Engine::wall_kernel() {
   });
 }
 
-template <class Tag>
-void Engine::wall_kernel_impl(const Tag& particle_law) {
+template <class Law>
+void Engine::wall_kernel_impl(const Law& particle_law) {
   const Vec3* x = ps_.x.data();
   const Vec3* v = ps_.v.data();
   const Vec3* w = ps_.omega.data();
@@ -578,8 +508,7 @@ void Engine::wall_kernel_impl(const Tag& particle_law) {
   thread_local WallBlock b;
   for (std::size_t k = 0; k < walls_.size(); ++k) {
     const PlaneWall& wall = walls_[k];
-    Tag law = particle_law;
-    law.mu = wall.friction;
+    const Law law = particle_law.with_friction(wall.friction);
     Vec3* hist = wall_hist_[k].data();
     const std::vector<std::uint32_t>& cand = wall_cand_[k];
     Vec3 total = Vec3::Zero();

@@ -515,14 +515,14 @@ class Engine {
   /// pair_forces (round-off apart).
   void pair_kernel(const LinearLaw& law);
   void pair_kernel(const HertzLaw& law);
-  template <class LawTag>
-  void pair_kernel_impl(const LawTag& law);
+  template <class Law>
+  void pair_kernel_impl(const Law& law);
   /// The plane walls' loop of the built-in laws, in blocks like the pair kernel (gather the
   /// touching candidates, the vectorised law, scatter in candidate order; contact_kernel.cpp).
   /// Same physics as the scalar loop of wall_forces (round-off apart). False: not a built-in law.
   bool wall_kernel();
-  template <class LawTag>
-  void wall_kernel_impl(const LawTag& law);
+  template <class Law>
+  void wall_kernel_impl(const Law& law);
   const double* pair_smeff();
   void bond_forces();
   void kick_half();
