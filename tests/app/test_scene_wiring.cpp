@@ -315,3 +315,21 @@ TEST(SceneWiring, ScheduleFollowsTheTimeSection) {
   EXPECT_EQ(sc.snapshot_every, static_cast<std::uint64_t>(std::llround(0.0233 / 1.237e-5)));   // 1884
   EXPECT_EQ(sc.checkpoint_every, static_cast<std::uint64_t>(std::llround(0.0311 / 1.237e-5))); // 2514
 }
+
+// blocks.flexural_strength (the conversion's flexural limit, docs/scene.md): given, its own value;
+// not given, analysis.flexural_strength whatever the stiffness model, never the calibrated
+// lattice's flexural strength; neither given, analysis' default 0.5e6.
+TEST(SceneWiring, BlockFlexuralStrengthDefaultsToTheAnalysisValue) {
+  const auto limit = [](const scene::Scene& s) { return sim::block_setup(s, nullptr, 0.0).def.flexural_strength; };
+  EXPECT_EQ(limit(wiring_scene()), 5.113e5);
+  const scene::Scene s = wiring_scene({{"blocks", {{"flexural_strength", nullptr}}}});
+  EXPECT_EQ(limit(s), 6.791e5);
+  EXPECT_NE(sim::calibrate_ice(s).flexural_strength, 6.791e5);
+  // The lattice's strength from a flexural target (no explicit bond strengths, no analysis value).
+  const scene::Scene t = wiring_scene({{"bonds", {{"tensile_strength", nullptr}, {"shear_strength", nullptr}}},
+                                       {"material", {{"flexural_strength", 3.37e5}}},
+                                       {"analysis", nullptr},
+                                       {"blocks", {{"flexural_strength", nullptr}}}});
+  EXPECT_NEAR(sim::calibrate_ice(t).flexural_strength, 3.37e5, 1e-6);
+  EXPECT_EQ(limit(t), 0.5e6);
+}
