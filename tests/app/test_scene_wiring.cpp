@@ -1,8 +1,8 @@
 // From a scene to the solver's set-up: every scene value that sim/ hands on (sim::engine_def, the
-// engine build_engine makes, sim::block_setup's HybridDef and rigid world, sim::schedule) arrives
-// where it belongs. Each value in the scene is distinct from every other and from its default, so
-// a value dropped (left at its default), taken from the wrong field or swapped with another of
-// the same type shows as a mismatch. The derived quantities (the calibrated springs, the contact
+// engine build_engine makes, sim::block_setup's HybridDef and rigid world, sim::relax_def,
+// sim::parallel_def, sim::schedule) arrives where it belongs. Each value in the scene is distinct
+// from every other and from its default, so a value dropped (left at its default), taken from the
+// wrong field or swapped with another of the same type shows as a mismatch. The derived quantities (the calibrated springs, the contact
 // damping) are computed here by the functions the build uses, from the scene's own values.
 #include "bonded/contact_linear.h"
 #include "common/hcp_geometry.h"
@@ -45,6 +45,7 @@ const char* const kScene = R"({
                 "position": [-3.71, 0.29, 0.0713], "velocity": [0.5173, 0.0119, -0.0007], "friction": 0.2297},
   "analysis": {"flexural_strength": 6.791e5},
   "stability": {"max_speed": 83.17, "max_overlap_ratio": 0.4371},
+  "parallel": {"grid": [3, 1, 2], "balance_interval": 377, "cost": "time"},
   "blocks": {
     "list": [{"half_extents": [0.31, 0.27, 0.19], "position": [9.7, 5.3, -0.21], "orientation": [0.9, 0.1, -0.2, 0.3],
               "velocity": [0.071, -0.033, 0.017], "angular_velocity": [0.013, 0.029, -0.041]},
@@ -53,6 +54,8 @@ const char* const kScene = R"({
     "friction_sees_torque": true, "rigid_dt": 1.13e-3, "conversion": "all_at_start", "lattice": "world",
     "region": {"offset": [0.31, -0.17, 0.23], "radius": 7.37, "z_min": -2.31, "z_max": 1.17},
     "safety_factor": 1.737, "flexural_strength": 5.113e5, "stress_time_constant": 0.0419,
+    "relax": {"max_time": 17.3, "speed": 0.0031, "hold": 0.73, "damping": 0.29, "jointed_time": 1.37,
+              "lattice_time": 2.19, "lattice_damping": 0.41, "hold_freeze_bonds": true},
     "far_sleep": {"enabled": true, "wake_distance": 2.71, "speed": 0.0137, "still_time": 0.619, "start_asleep": true,
                   "wake_hops": 7, "loads_wake_neighbours": true, "loads_held": true, "region_awake": false,
                   "zone_wakes_neighbours": false}}
@@ -303,6 +306,26 @@ TEST(SceneWiring, BlockSetupDefaultsAndFractions) {
   EXPECT_EQ(g.shape, bridge::ConversionRegion::Shape::Box);
   expect_vec(g.offset, Vec3(0.11, 0.13, -0.07), "box region offset");
   expect_vec(g.half_extents, Vec3(7.1, 6.3, 2.9), "box region half extents");
+}
+
+// The relaxation before the freeze and the spread over the ranks, as build_simulation hands them on.
+TEST(SceneWiring, RelaxAndParallelSettings) {
+  const scene::Scene s = wiring_scene();
+  EXPECT_TRUE(s.blocks.relax.enabled);  // an object turns it on
+  const bridge::RelaxDef r = sim::relax_def(s);
+  EXPECT_EQ(r.max_time, 17.3);
+  EXPECT_EQ(r.speed, 0.0031);
+  EXPECT_EQ(r.hold, 0.73);
+  EXPECT_EQ(r.damping, 0.29);
+  EXPECT_EQ(r.jointed_time, 1.37);
+  EXPECT_EQ(r.lattice_time, 2.19);
+  EXPECT_EQ(r.lattice_damping, 0.41);
+  EXPECT_EQ(r.hold_freeze_bonds, 1u);
+  const bonded::ParallelDef p = sim::parallel_def(s);
+  EXPECT_EQ(p.grid, (std::array<int, 3>{3, 1, 2}));
+  EXPECT_EQ(p.balance_interval, 377u);
+  EXPECT_EQ(p.cost, bonded::ParallelDef::Cost::Time);
+  EXPECT_EQ(sim::parallel_def(wiring_scene({{"parallel", {{"cost", "work"}}}})).cost, bonded::ParallelDef::Cost::Work);
 }
 
 // The schedule: steps of the run and between rows, snapshots and checkpoints.
