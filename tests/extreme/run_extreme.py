@@ -15,7 +15,7 @@ that became stable, or unstable, after a change is a behaviour change to look at
 record here).
 
 Whatever the outcome, the rows written must also keep within three bounds that physics gives
-(physics_bounds below; each case's measured figures are in MEASURED):
+(physics_bounds below; each case's measured figures in the table above CASES):
   energy  the particles' total energy never rises above its start by more than the work the
           structure has done on the ice (/series/force is the mean over each output interval, so
           the work of an interval is exact: -F . v dt) plus the kinetic energy the rigid blocks
