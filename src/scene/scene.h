@@ -202,7 +202,7 @@ struct BlocksDef {
   std::string lattice = "block";
   ConversionRegionDef region;
   double safety_factor = 1.0;        ///< converts when utilisation x safety_factor >= 1
-  double flexural_strength = 0.0;    ///< Pa; 0 = analysis.flexural_strength
+  double flexural_strength = 0.5e6;  ///< Pa; read with analysis.flexural_strength as its default
   double stress_time_constant = 0.05;  ///< s, low-pass filter on the utilisation; 0 = none
   /// The relaxation before the freeze (docs/bridge.md, "Relaxation"; bridge::RelaxDef): on by
   /// default with a ridge file (off for a list alone: its blocks' initial state is the scene's),

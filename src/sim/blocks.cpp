@@ -54,10 +54,9 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   w.far_sleep.loads_held = b.far_sleep_loads_held;
   w.far_sleep.region_awake = b.far_sleep_region_awake;
   w.far_sleep.zone_wakes_neighbours = b.far_sleep_zone_wakes_neighbours;
-  // The conversion's flexural limit: the lattice's own strength (calibrated), as ISO is given.
-  d.flexural_strength = b.flexural_strength > 0.0                                   ? b.flexural_strength
-                        : ci.model == "calibrated" && ci.flexural_strength > 0.0 ? ci.flexural_strength
-                                                                                  : s.analysis.flexural_strength;
+  // The conversion's flexural limit: blocks.flexural_strength, whose default is
+  // analysis.flexural_strength (scene.cpp, docs/scene.md), not the calibrated lattice's strength.
+  d.flexural_strength = b.flexural_strength;
   // The crushing criterion: a particle contact pressing a block as hard as would crush one of the
   // lattice's own bonds (compressive strength x bond area) converts it (criterion_crushing.h).
   // Off when the lattice's bonds do not break in compression.

@@ -41,6 +41,28 @@ void Simulation::structure_load(StructureLoad& out) const {
   }
 }
 
+bridge::RelaxDef relax_def(const scene::Scene& s) {
+  const auto& r = s.blocks.relax;
+  bridge::RelaxDef d;
+  d.max_time = r.max_time;
+  d.speed = r.speed;
+  d.hold = r.hold;
+  d.damping = r.damping;
+  d.jointed_time = r.jointed_time;
+  d.lattice_time = r.lattice_time;
+  d.lattice_damping = r.lattice_damping;
+  d.hold_freeze_bonds = r.hold_freeze_bonds ? 1u : 0u;
+  return d;
+}
+
+bonded::ParallelDef parallel_def(const scene::Scene& s) {
+  bonded::ParallelDef pd;
+  pd.grid = s.parallel.grid;
+  pd.balance_interval = s.parallel.balance_interval;
+  pd.cost = s.parallel.cost == "time" ? bonded::ParallelDef::Cost::Time : bonded::ParallelDef::Cost::Work;
+  return pd;
+}
+
 Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {
   Simulation sim;
   MemoryEstimate est = memory_estimate(s);
@@ -74,9 +96,7 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
       }
     } else {
       const auto& r = s.blocks.relax;
-      const bridge::RelaxReport& rep = sim.hybrid_->relax({r.max_time, r.speed, r.hold, r.damping, r.jointed_time, r.lattice_time,
-                                                               r.lattice_damping, r.hold_freeze_bonds ? 1u : 0u},
-                                                              opt.relax_progress);
+      const bridge::RelaxReport& rep = sim.hybrid_->relax(relax_def(s), opt.relax_progress);
       if (rep.stopped) throw RelaxationStopped(rep.time);
       // Not at rest at the freeze: the last stage did not end at rest (a first stage that ends
       // at max_time is what the jointed stage is for).
@@ -120,11 +140,7 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
     }
   }
   if (comm.parallel()) {  // every rank built the whole scene; each keeps its share
-    bonded::ParallelDef pd;
-    pd.grid = s.parallel.grid;
-    pd.balance_interval = s.parallel.balance_interval;
-    pd.cost = s.parallel.cost == "time" ? bonded::ParallelDef::Cost::Time : bonded::ParallelDef::Cost::Work;
-    e.distribute(comm, pd);
+    e.distribute(comm, parallel_def(s));
   }
   sim.schedule_ = schedule(s.time, e.dt());
   return sim;

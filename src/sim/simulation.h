@@ -103,6 +103,11 @@ class Simulation {
   Schedule schedule_;
 };
 
+/// The relaxation before the freeze as the scene gives it (blocks.relax), for HybridSystem::relax.
+bridge::RelaxDef relax_def(const scene::Scene& s);
+/// How the engine spreads over the ranks (the scene's "parallel"), for Engine::distribute.
+bonded::ParallelDef parallel_def(const scene::Scene& s);
+
 /// Builds the scene: the engine (particles, walls, structure), the blocks and the hybrid system
 /// (all_at_start converts them here), then spreads the particles over the ranks of `comm`
 /// (every rank builds the whole scene and keeps its share). Throws hs::InputError.

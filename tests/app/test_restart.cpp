@@ -473,3 +473,85 @@ TEST(Restart, AnotherRankCountContinuesWithinRoundOff) {
       EXPECT_EQ(series_difference(pn, pr, s).first, 0.0) << r << " " << s;
   }
 }
+
+namespace {
+
+/// A numeric attribute of the checkpoint group of `ckpt` (0 when absent).
+template <class T>
+T checkpoint_attribute(const fs::path& ckpt, const char* name, hid_t type) {
+  T v{};
+  const hid_t f = H5Fopen(ckpt.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return v;
+  const hid_t a = H5Aopen_by_name(f, "/checkpoint", name, H5P_DEFAULT, H5P_DEFAULT);
+  if (a >= 0) {
+    H5Aread(a, type, &v);
+    H5Aclose(a);
+  }
+  H5Fclose(f);
+  return v;
+}
+
+}  // namespace
+
+// A restart continues from the checkpoint; it does not run the scene again from t = 0 (whose
+// /series would equal the straight run's too, so the bit-identity tests above cannot tell). A
+// floating patch that the pier reaches at t = 0.07 s (no blocks: ~2 s), run A with checkpoints
+// every 0.04 s of a 0.1 s run, restarted from its last (step 1056 of 1319, t = 0.08 s) into B:
+// B's first own row (the row after the checkpoint's series_rows copied from A) is the first
+// output step after the checkpoint, later in time; every row of B is A's (none twice); and B
+// stepped only the steps after the checkpoint (its summary: "restarted at step 1056, 263 steps",
+// the engine at A's final step and time). Measured with the bug planted: the checkpoint's state
+// not restored (apply_restart returns step 0, the loop reruns from step 1 behind the copied rows)
+// gives B's first own row at step 132, t = 0.010 s, and 19 rows; the state restored but the loop
+// started again at step 1 gives 19 rows and "finished: 2375 steps to t = 0.18 s; restarted at
+// step 1056, 1319 steps".
+TEST(Restart, ARestartStepsOnlyFromTheCheckpoint) {
+  write("patch.json", R"({
+    "name": "patch", "time": {"duration": 0.1, "output_interval": 0.01, "checkpoint_interval": 0.04},
+    "material": {"particle_diameter": 0.25, "youngs_modulus": 1e8},
+    "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
+    "water": {"linear_drag_per_area": 1000},
+    "ice": {"thickness": 0.5, "length": 2, "width": 2, "origin": [0, -1]},
+    "structure": {"pier": {"waterline_diameter": 1.0, "cone_angle_deg": 52, "cone_top_z": 0.5, "neck_height": 0.5,
+                           "cone_bottom_z": -0.96, "shaft_diameter": 1.25, "shaft_bottom_z": -1.96, "segments": 24},
+                  "position": [-0.8, 0, 0], "velocity": [1.0, 0, 0]}
+  })");
+  const auto a = hybridsim("run patch.json -o p_a.h5");
+  ASSERT_EQ(a.rc, 0) << a.err;
+  const fs::path ckpt = work_dir() / "p_a.ckpt.h5";
+  const auto k = checkpoint_attribute<std::uint64_t>(ckpt, "step", H5T_NATIVE_UINT64);
+  const auto t_ckpt = checkpoint_attribute<double>(ckpt, "time", H5T_NATIVE_DOUBLE);
+  const auto rows = checkpoint_attribute<std::uint64_t>(ckpt, "series_rows", H5T_NATIVE_UINT64);
+  const auto step_a = read_doubles(work_dir() / "p_a.h5", "/series/step");
+  const auto time_a = read_doubles(work_dir() / "p_a.h5", "/series/time");
+  ASSERT_GE(step_a.size(), 3u);
+  const auto total = static_cast<std::uint64_t>(step_a.back());
+  ASSERT_GT(k, 0u);
+  ASSERT_LT(k, total);  // the checkpoint falls inside the run
+  ASSERT_GT(rows, 0u);
+  ASSERT_LT(rows, step_a.size());
+
+  const auto b = hybridsim("run patch.json --restart p_a.h5 -o p_b.h5");
+  ASSERT_EQ(b.rc, 0) << b.err;
+  const auto step_b = read_doubles(work_dir() / "p_b.h5", "/series/step");
+  const auto time_b = read_doubles(work_dir() / "p_b.h5", "/series/time");
+  ASSERT_EQ(time_b.size(), step_b.size());
+  ASSERT_GT(step_b.size(), rows);
+  // B's first own row: the first output step after the checkpoint, later than it in time.
+  EXPECT_GT(step_b[rows], static_cast<double>(k));
+  EXPECT_GT(time_b[rows], t_ckpt);
+  EXPECT_LE(step_b[rows - 1], static_cast<double>(k));
+  EXPECT_EQ(step_b.size(), step_a.size());
+  for (std::size_t i = 0; i < std::min(step_a.size(), step_b.size()); ++i) {
+    EXPECT_EQ(step_b[i], step_a[i]) << "row " << i;
+    EXPECT_EQ(time_b[i], time_a[i]) << "row " << i;
+    if (i > 0) EXPECT_GT(step_b[i], step_b[i - 1]) << "row " << i;
+  }
+  // B stepped only the steps after the checkpoint, and ended where A ended.
+  const std::string said = b.out + b.err;
+  EXPECT_NE(said.find("restarted from p_a.ckpt.h5 at step " + std::to_string(k)), std::string::npos) << said;
+  EXPECT_NE(said.find("finished: " + std::to_string(total) + " steps to t = "), std::string::npos) << said;
+  EXPECT_NE(said.find("; restarted at step " + std::to_string(k) + ", " + std::to_string(total - k) + " steps in "),
+            std::string::npos)
+      << said;
+}

@@ -13,6 +13,28 @@ It fails on anything else: a crash (signal, exit 1), a hang (TIMEOUT_S), a non-f
 the file or a NaN/inf printed in the summary, or an outcome other than the expected one (a case
 that became stable, or unstable, after a change is a behaviour change to look at and then to
 record here).
+
+Whatever the outcome, the rows written must also keep within three bounds that physics gives
+(physics_bounds below; each case's measured figures in the table above CASES):
+  energy  the particles' total energy never rises above its start by more than the work the
+          structure has done on the ice (/series/force is the mean over each output interval, so
+          the work of an interval is exact: -F . v dt) plus the kinetic energy the rigid blocks
+          have lost; water drag, contact and bond damping and broken bonds only take energy out;
+  force   |F| on the structure <= (1 + mu) rho c v h w: the stress of an elastic impact at the
+          structure's speed v (rho c v, c = sqrt(E / rho)) over the ice's thickness h times the
+          structure's widest width w at the ice (the cone at the ice's bottom), friction mu added.
+          A strength bound (ice strength x area) is not one here: broken particles still carry
+          compression through their contacts (bond_1Pa pushes 9e3 Pa over that area);
+  speed   no particle faster than 2 v + |g| T: a particle leaves the moving face at most at 2 v
+          (restitution <= 1; an elastic wave's particle velocity v doubles at a free face), and
+          gravity adds at most |g| per second over the run's T. Read from the snapshots, every
+          SNAPSHOT_INTERVAL.
+
+    run_extreme.py HYBRIDSIM CASE WORKDIR --plant PATH=VALUE ...
+
+passes the overrides to the run only (the bounds are still those of the case's scene): a way to
+check that the bounds catch a run that breaks them, e.g. --plant 'structure.velocity=[20,0,0]'
+on gravity_zero fails all three.
 """
 import copy
 import json
@@ -26,12 +48,16 @@ import h5py
 import numpy as np
 
 TIMEOUT_S = 60
+SNAPSHOT_INTERVAL = 0.01  # s (BASE): the particle speeds are read from the snapshots
+# Slack of the energy bound: 1e-3 of the work done by the run's end, + 1 mJ for the rows before
+# contact (measured: no row passes the bound; the closest, D_h_over_10, gains 0.90 of the work).
+ENERGY_SLACK = (1e-3, 1e-3)
 DIAGNOSTIC = re.compile(r"error: simulation unstable: simulation became unstable at step \d+ \(t = [^)]*\): "
                         r".*beyond the limit stability\.(max_speed|max_overlap_ratio)")
 
 BASE = {
     "name": "extreme",
-    "time": {"duration": 0.3, "output_interval": 0.01, "snapshot_interval": 0.1},
+    "time": {"duration": 0.3, "output_interval": 0.01, "snapshot_interval": 0.01},
     "material": {"particle_diameter": 0.25, "youngs_modulus": 1e8},
     "bonds": {"tensile_strength": 2e5, "shear_strength": 2e5},
     "water": {"linear_drag_per_area": 1000},
@@ -51,6 +77,26 @@ def set_path(scene, path, value):
         node = node.setdefault(k, {})
     node[keys[-1]] = value
 
+
+# The physics bounds as measured (physics_bounds' figures; one core, Release build):
+#   case                        energy gain / work in   peak force / bound   fastest particle / bound
+#   stiff_E1e10                 0.46                    0.0071               0.35
+#   stiff_E1e10_hertz           0.43                    0.0082               0.34
+#   structure_5ms               0.50                    0.074                0.70
+#   structure_20ms              0.52                    0.084                0.73
+#   structure_20ms_max_speed_5  - (stops at 0.01 s)     0 (no contact yet)   0.097
+#   bond_1Pa                    0.64                    0.035                0.30
+#   bond_1e12Pa                 0.80                    0.19                 0.39
+#   friction_0                  0.69                    0.12                 0.33
+#   friction_10                 0.79                    0.025                0.39
+#   restitution_0.01            0.66                    0.13                 0.33
+#   restitution_1               0.71                    0.15                 0.38
+#   D_eq_h                      0.64                    0.10                 0.30
+#   D_h_over_10                 0.90                    0.039                0.44
+#   gravity_zero                0.69                    0.14                 0.93 (no |g| T: 1.85 m/s < 2 v)
+#   blocks_0.05_and_10m         0.016                   0.14                 0.38
+# --plant 'structure.velocity=[20,0,0]' on gravity_zero (the run 20x faster than the bounds assume):
+# energy 10.3, force 1.67, speed 15.7: all three fail.
 
 # case -> (overrides {dotted path: value}, expected outcome[, a regex the summary must match])
 CASES = {
@@ -127,8 +173,71 @@ def non_finite(path):
     return bad
 
 
+def structure_width_at_ice(scene):
+    """The pier's widest width the ice meets: the cone's diameter at the ice's floating bottom."""
+    pier = scene["structure"]["pier"]
+    draft = 0.92 * scene["ice"]["thickness"]
+    return pier["waterline_diameter"] + 2 * draft / math.tan(math.radians(pier["cone_angle_deg"]))
+
+
+def physics_bounds(scene, path):
+    """(errors, figures) of the three bounds (module docstring) on the rows of the output file."""
+    errors = []
+    with h5py.File(path, "r") as f:
+        t = f["series/time"][()]
+        force = f["series/force"][()]
+        energy = f["series/energy/total"][()]
+        blocks_ke = f["series/blocks/kinetic_energy"][()] if "series/blocks/kinetic_energy" in f else np.zeros_like(t)
+        speed = 0.0
+        if "snapshots" in f:
+            for k, g in f["snapshots"].items():
+                if isinstance(g, h5py.Group) and "velocity" in g:
+                    speed = max(speed, float(np.max(np.linalg.norm(g["velocity"][()], axis=1), initial=0.0)))
+    v = np.array(scene["structure"]["velocity"], dtype=float)
+    vp = float(np.linalg.norm(v))
+    for b in scene.get("blocks", {}).get("list", []):
+        vp = max(vp, float(np.linalg.norm(b.get("velocity", [0, 0, 0]))))
+    figures = {}
+    # energy: E(t) - E(0) <= W(t) + blocks' kinetic energy lost
+    work = np.concatenate([[0.0], np.cumsum(-(force[1:] @ v) * np.diff(t))])
+    source = work + np.maximum(0.0, blocks_ke[0] - blocks_ke)
+    gain = energy - energy[0]
+    slack = ENERGY_SLACK[0] * max(float(work[-1]), 0.0) + ENERGY_SLACK[1]
+    excess = gain - source
+    i = int(np.argmax(excess))
+    figures["energy_gain_over_work"] = float(np.max(gain[source > 0.02 * source[-1]] / source[source > 0.02 * source[-1]],
+                                                   initial=0.0)) if source[-1] > 0 else 0.0
+    if excess[i] > slack:
+        errors.append(f"energy: at t = {t[i]:.4g} s the particles hold {gain[i]:.4g} J more than at the start, above the "
+                      f"{source[i]:.4g} J the structure and the blocks put in (+ {slack:.3g} J)")
+    # force: |F| <= (1 + mu) rho c v h w
+    mat = scene["material"]
+    rho = mat.get("density", 920.0)
+    c = math.sqrt(mat["youngs_modulus"] / rho)
+    h = scene["ice"]["thickness"]
+    mu = scene["structure"].get("friction", 0.1)
+    f_bound = (1 + mu) * rho * c * np.linalg.norm(scene["structure"]["velocity"]) * h * structure_width_at_ice(scene)
+    f_peak = float(np.max(np.linalg.norm(force, axis=1), initial=0.0))
+    figures["force_over_bound"] = f_peak / f_bound
+    if f_peak > f_bound:
+        errors.append(f"force: peak {f_peak:.4g} N on the structure above the elastic-impact bound {f_bound:.4g} N")
+    # speed: |v_i| <= 2 v + |g| T
+    g = float(np.linalg.norm(scene.get("gravity", [0, 0, -9.81])))
+    s_bound = 2 * vp + g * scene["time"]["duration"]
+    figures["speed_over_bound"] = speed / s_bound
+    if speed > s_bound:
+        errors.append(f"speed: a particle at {speed:.4g} m/s, above 2 v + |g| T = {s_bound:.4g} m/s")
+    return errors, figures
+
+
 def main():
-    exe, case, work = sys.argv[1], sys.argv[2], sys.argv[3]
+    args = sys.argv[1:]
+    plant = []
+    while "--plant" in args:
+        k = args.index("--plant")
+        plant.append(args[k + 1])
+        del args[k:k + 2]
+    exe, case, work = args[0], args[1], args[2]
     expected = CASES[case][1]
     os.makedirs(work, exist_ok=True)
     scene_path = os.path.join(work, f"extreme_{case}.json")
@@ -138,7 +247,8 @@ def main():
     with open(scene_path, "w") as f:
         json.dump(scene_for(case), f, indent=1)
     try:
-        p = subprocess.run([exe, "run", scene_path, "-o", out], capture_output=True, text=True, timeout=TIMEOUT_S)
+        cmd = [exe, "run", scene_path, "-o", out] + [a for o in plant for a in ("--set", o)]
+        p = subprocess.run(cmd, capture_output=True, text=True, timeout=TIMEOUT_S)
     except subprocess.TimeoutExpired:
         print(f"FAIL {case}: no result after {TIMEOUT_S} s (hang?)")
         return 1
@@ -169,14 +279,20 @@ def main():
             peak = float(np.max(np.abs(f["series/force"][()]))) if "series/force" in f else 0.0
         if not peak > 0:
             errors.append("the pier never touched the ice (peak force 0): the case tests nothing")
+    bad = []
     if os.path.exists(out):
         bad = non_finite(out)
         if bad:
             errors.append("non-finite values in " + ", ".join(bad[:10]) + (" ..." if len(bad) > 10 else ""))
+    figures = {}
+    if os.path.exists(out) and not bad:
+        bound_errors, figures = physics_bounds(scene_for(case), out)
+        errors += bound_errors
+    shown = ", ".join(f"{k} {v:.3g}" for k, v in figures.items())
     if errors:
-        print(f"FAIL {case}: " + "; ".join(errors))
+        print(f"FAIL {case}: " + "; ".join(errors) + (f" ({shown})" if shown else ""))
         return 1
-    print(f"PASS {case}: exit {rc}, output finite")
+    print(f"PASS {case}: exit {rc}, output finite, within the physics bounds ({shown})")
     return 0
 
 
