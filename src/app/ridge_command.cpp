@@ -6,7 +6,8 @@
 #include "scene/scene.h"
 #include "sim/build.h"
 #include "sim/ridge_sheet.h"
-#include "rigid/ridge.h"
+#include "ridge/ridge.h"
+#include "ridge/ridge_json.h"
 #include "io/ridge_file.h"
 #include "io/run_file.h"
 

@@ -3,6 +3,7 @@
 
 #include "common/error.h"
 #include "io/h5_handle.h"
+#include "ridge/ridge_json.h"
 
 #include <cmath>
 #include <sstream>
@@ -279,11 +280,12 @@ void read_ridge_attributes(const Ctx& c, hid_t root, RidgeResult& r) {
     r.def = ridge_def_from_json(nlohmann::json::parse(read_str_attr(c, root, "definition")),
                                 "/ridge@definition");
     r.stats = stats_from_json(nlohmann::json::parse(read_str_attr(c, root, "stats")));
-    r.generation = nlohmann::json::parse(read_str_attr(c, root, "generation"));
-    const nlohmann::json& sh = r.generation.at("sheet");
+    r.generation = read_str_attr(c, root, "generation");
+    const nlohmann::json gen = nlohmann::json::parse(r.generation);
+    const nlohmann::json& sh = gen.at("sheet");
     rigid::RidgeSheet& sheet = r.def.sheet;
     sheet.floating = sh.at("kind").get<std::string>() == "floating";
-    sheet.consolidated_layer_center_x = r.generation.at("consolidated_layer").at("center_x").get<double>();
+    sheet.consolidated_layer_center_x = gen.at("consolidated_layer").at("center_x").get<double>();
     if (sheet.floating) {
       sheet.particle_diameter = sh.at("particle_diameter").get<double>();
       sheet.plate_width = sh.at("plate_width").get<double>();

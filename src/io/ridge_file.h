@@ -1,10 +1,11 @@
-// Ridge file (HDF5): a generated ridge (rigid/ridge.h) that any scene can load.
+// Ridge file (HDF5): a generated ridge (ridge/ridge.h; its data: ridge/ridge_data.h) that any
+// scene can load.
 //
 // Layout (file_format "hybridsim-ridge/2", HDF5 1.8 format, all doubles native 64-bit):
 //   /ridge                       attributes file_format, definition (RidgeDef as JSON,
 //                                ridge_def_to_json), stats (RidgeStats as JSON), report
 //                                (ridge_report, for people), generation (what it was made
-//                                with, rigid::ridge_generation_json; docs/ridge.md)
+//                                with, ridge_generation_json of ridge/ridge_json.h; docs/ridge.md)
 //   /ridge/blocks/half_extents   n x 3  m
 //   /ridge/blocks/position       n x 3  m (centre)
 //   /ridge/blocks/orientation    n x 4  quaternion w, x, y, z (body -> world, w >= 0)
@@ -21,7 +22,7 @@
 // save_ridge -> load_ridge gives back the same RidgeResult bit for bit.
 #pragma once
 
-#include "rigid/ridge.h"
+#include "ridge/ridge_data.h"
 
 #include <string>
 

@@ -4,6 +4,8 @@
 #include "common/error.h"
 #include "common/ice_formulas.h"
 #include "json/reader.h"
+#include "ridge/definition.h"
+#include "ridge/ridge_json.h"
 #include "sim/build.h"
 
 #include <algorithm>

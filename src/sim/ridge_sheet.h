@@ -6,7 +6,7 @@
 // its contact surfaces, and a run refuses a ridge file whose recorded sheet differs.
 #pragma once
 
-#include "rigid/ridge.h"
+#include "ridge/ridge_data.h"
 #include "scene/scene.h"
 
 #include <cstddef>

@@ -8,7 +8,8 @@
 
 #include "common/error.h"
 #include "io/ridge_file.h"
-#include "rigid/ridge.h"
+#include "ridge/ridge.h"
+#include "ridge/ridge_json.h"
 #include "scene/scene.h"
 #include "sim/build.h"
 
