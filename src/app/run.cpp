@@ -78,6 +78,7 @@ class LoopPoll {
       : comm_(comm), signals_(signals), every_(comm.parallel() ? kMpiPollSteps : 1), interval_(flush_interval),
         last_flush_(Clock::now()) {}
   PollResult after_step(std::uint64_t k, std::uint64_t total) {
+    raise_test_signal("loop", k, comm_.rank());
     if (k % every_ != 0 && k != total) return {};
     const auto now = Clock::now();
     double v[2] = {static_cast<double>(signals_.received()),
@@ -295,6 +296,7 @@ std::function<bool(const bridge::RelaxProgress&)> relaxation_poll(const scene::S
                                                                   const StopSignals& signals, std::FILE* progress) {
   return [&s, &comm, &signals, progress, last_line = Clock::now(),
           calls = std::uint64_t{0}](const bridge::RelaxProgress& p) mutable {
+    raise_test_signal("relax", ++calls, comm.rank());
     if (seconds_since(last_line) >= 5.0) {
       last_line = Clock::now();
       std::fprintf(progress,
@@ -309,7 +311,7 @@ std::function<bool(const bridge::RelaxProgress&)> relaxation_poll(const scene::S
                    s.blocks.relax.speed, p.quiet_time, static_cast<unsigned long long>(p.lattice_bonds_broken));
       std::fflush(progress);
     }
-    if (comm.parallel() && ++calls % kMpiPollSteps != 0) return false;
+    if (comm.parallel() && calls % kMpiPollSteps != 0) return false;
     double v = signals.received();
     if (comm.parallel()) comm.max(&v, 1);
     return v > 0.0;

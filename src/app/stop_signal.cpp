@@ -1,6 +1,8 @@
 #include "app/stop_signal.h"
 
 #include <cstdio>
+#include <cstdlib>
+#include <cstring>
 
 namespace hs::app {
 
@@ -30,6 +32,17 @@ StopSignals::~StopSignals() {
 }
 
 int StopSignals::received() const { return g_received; }
+
+void raise_test_signal(const char* where, std::uint64_t step, int rank) {
+  static const char* const spec = std::getenv("HYBRIDSIM_TEST_SIGNAL");
+  if (spec == nullptr) return;
+  char sig[8] = {}, at[8] = {};
+  unsigned long long n = 0;
+  int r = -1;
+  if (std::sscanf(spec, "%7[A-Z]:%7[a-z]:%llu:%d", sig, at, &n, &r) < 3) return;
+  if (step != n || std::strcmp(at, where) != 0 || (r >= 0 && r != rank)) return;
+  std::raise(std::strcmp(sig, "INT") == 0 ? SIGINT : std::strcmp(sig, "KILL") == 0 ? SIGKILL : SIGTERM);
+}
 
 const char* signal_name(int sig) {
   if (sig == SIGINT) return "SIGINT";

@@ -5,6 +5,7 @@
 #pragma once
 
 #include <csignal>
+#include <cstdint>
 
 namespace hs::app {
 
@@ -25,6 +26,13 @@ class StopSignals {
  private:
   struct sigaction old_int_ {}, old_term_ {};
 };
+
+/// Test hook (docs/output.md, "What survives a killed run"): with HYBRIDSIM_TEST_SIGNAL set to
+/// "<INT|TERM|KILL>:<loop|relax>:<step>[:<rank>]", the run raises that signal to itself when
+/// `where` ("loop": after main-loop step `step`; "relax": at the relaxation's rigid step `step`)
+/// reaches the step, on every rank or on the given one only. Lets the tests stop a run at a
+/// point of its progress instead of after a wall-clock sleep. Does nothing when unset.
+void raise_test_signal(const char* where, std::uint64_t step, int rank);
 
 /// "SIGINT", "SIGTERM" or "signal N".
 const char* signal_name(int sig);

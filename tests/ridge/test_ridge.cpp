@@ -154,23 +154,46 @@ TEST(Ridge, SameSeedIdenticalDifferentSeedDifferent) {
   EXPECT_FALSE(bit_equal(flatten(small_ridge()), flatten(other)));
 }
 
+/// The median of `v` (an odd count: the middle value).
+double median(std::vector<double> v) {
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
+constexpr std::uint64_t kSeeds[] = {11, 12, 13, 14, 15};
+
 // Placement only (one rigid step): the greedy deposition with several candidate poses
 // fills holes before the pile grows, so the released column is denser than plain
-// ballistic deposition (one pose per block) and needs a shorter rise.
+// ballistic deposition (one pose per block) and needs a shorter rise. A statement about
+// the generator, not one pile: over 5 seeds, the median porosity gap and keel depth gap,
+// and every seed but one denser. Measured (seeds 11-15): porosity 0.828-0.858 with one
+// candidate, 0.741-0.752 with 8; gaps 0.076-0.110 (median 0.090), keel 0.67-2.20 m shallower
+// (median 1.29 m), 5 of 5 denser. With 8 candidates switched off (1 and 1) every gap is 0.
 TEST(Ridge, GreedyPlacementPacksDenserThanBallistic) {
-  auto placed = [](int candidates) {
-    RidgeDef d = small_def();
+  auto placed = [](int candidates, std::uint64_t seed) {
+    RidgeDef d = small_def(seed);
     d.placement_candidates = candidates;
     d.settle.min_time = 0.0;
     d.settle.compaction_time = 0.0;
     d.settle.max_time = d.settle.dt;
     return generate_ridge(d).stats;
   };
-  const RidgeStats one = placed(1), eight = placed(8);
-  std::printf("[ ridge ] placed porosity: 1 candidate %.3f (keel %.2f m), 8 candidates %.3f (keel %.2f m)\n",
-              one.keel_porosity, one.keel_depth_achieved, eight.keel_porosity, eight.keel_depth_achieved);
-  EXPECT_LT(eight.keel_porosity, one.keel_porosity - 0.05);
-  EXPECT_LT(eight.keel_depth_achieved, one.keel_depth_achieved);
+  std::vector<double> gap, deeper;
+  int denser = 0;
+  for (const std::uint64_t seed : kSeeds) {
+    const RidgeStats one = placed(1, seed), eight = placed(8, seed);
+    std::printf("[ ridge ] seed %llu placed porosity: 1 candidate %.3f (keel %.2f m), 8 candidates %.3f (keel %.2f m)\n",
+                static_cast<unsigned long long>(seed), one.keel_porosity, one.keel_depth_achieved,
+                eight.keel_porosity, eight.keel_depth_achieved);
+    gap.push_back(one.keel_porosity - eight.keel_porosity);
+    deeper.push_back(one.keel_depth_achieved - eight.keel_depth_achieved);
+    denser += eight.keel_porosity < one.keel_porosity;
+  }
+  std::printf("[ ridge ] median porosity gap %.3f, median keel depth gap %.2f m, %d of 5 denser\n", median(gap),
+              median(deeper), denser);
+  EXPECT_GT(median(gap), 0.05);
+  EXPECT_GT(median(deeper), 0.3);
+  EXPECT_GE(denser, 4);
 }
 
 // The compaction phase (keel friction off while the blocks rise) packs the rubble into
@@ -178,25 +201,41 @@ TEST(Ridge, GreedyPlacementPacksDenserThanBallistic) {
 // rise with full friction; the block count is the same, so the keel gets shallower.
 // The small ridge's core is 2 m x 3 m between end walls (about 5 block lengths): walls
 // loosen the packing there, so the band is checked on a ridge twice as long and deeper.
+// Over 5 seeds: the median core porosity in the band, every seed but one denser with the
+// compaction than without. Measured (seeds 11-15): core porosity 0.368-0.415 with the
+// compaction (median 0.392), 0.560-0.604 without (median 0.583: the switched-off feature
+// misses the band), 5 of 5 denser; keel 1.58-2.00 m against 3.47-3.64 m. ~27 s of CPU (10
+// generations).
 TEST(Ridge, CompactionPacksIntoKeelPorosityBand) {
-  RidgeDef d = small_def();
-  d.length = 6.0;
-  d.keel_depth = 2.5;
-  d.consolidated_layer_width = 3.0;
-  const RidgeResult with = generate_ridge(d);
-  d.settle.compaction_time = 0.0;
-  const RidgeResult no = generate_ridge(d);
-  const RidgeStats& c = with.stats;
-  std::printf("[ ridge ] %zu keel blocks, porosity %.3f, settled %d at %.1f s, %.1f s wall\n", c.keel_blocks,
-              c.keel_porosity, int(c.settled), c.settle_time, c.wall_time);
-  std::printf("[ ridge ] core porosity without compaction %.3f, with %.3f; keel %.2f / %.2f m\n",
-              no.stats.core_porosity, c.core_porosity, no.stats.keel_depth_achieved, c.keel_depth_achieved);
-  EXPECT_EQ(no.stats.keel_blocks, c.keel_blocks);
-  EXPECT_LT(c.core_porosity, no.stats.core_porosity);
-  EXPECT_GT(c.core_porosity, 0.2);
-  EXPECT_LT(c.core_porosity, 0.45);
-  EXPECT_GT(c.compaction_time, 0.0);
-  EXPECT_LE(c.compaction_time, small_def().settle.compaction_time + 0.5);  // + one KE check
+  std::vector<double> with_p, no_p;
+  int denser = 0;
+  for (const std::uint64_t seed : kSeeds) {
+    RidgeDef d = small_def(seed);
+    d.length = 6.0;
+    d.keel_depth = 2.5;
+    d.consolidated_layer_width = 3.0;
+    const RidgeResult with = generate_ridge(d);
+    d.settle.compaction_time = 0.0;
+    const RidgeResult no = generate_ridge(d);
+    const RidgeStats& c = with.stats;
+    std::printf("[ ridge ] seed %llu: %zu keel blocks, settled %d at %.1f s, %.1f + %.1f s wall; core porosity "
+                "without compaction %.3f, with %.3f; keel %.2f / %.2f m\n",
+                static_cast<unsigned long long>(seed), c.keel_blocks, int(c.settled), c.settle_time, c.wall_time,
+                no.stats.wall_time, no.stats.core_porosity, c.core_porosity, no.stats.keel_depth_achieved,
+                c.keel_depth_achieved);
+    EXPECT_EQ(no.stats.keel_blocks, c.keel_blocks);
+    EXPECT_GT(c.compaction_time, 0.0);
+    EXPECT_LE(c.compaction_time, small_def().settle.compaction_time + 0.5);  // + one KE check
+    with_p.push_back(c.core_porosity);
+    no_p.push_back(no.stats.core_porosity);
+    denser += c.core_porosity < no.stats.core_porosity;
+  }
+  std::printf("[ ridge ] median core porosity without compaction %.3f, with %.3f; %d of 5 denser\n", median(no_p),
+              median(with_p), denser);
+  EXPECT_LT(median(with_p), median(no_p));
+  EXPECT_GE(denser, 4);
+  EXPECT_GT(median(with_p), 0.2);
+  EXPECT_LT(median(with_p), 0.45);
 }
 
 TEST(Ridge, SaveLoadRoundTripBitExact) {
