@@ -263,7 +263,10 @@ void FarSleep::wake_departed(WorldImpl& w, bool repeat) {
       caller_j[k].setZero();
       caller_l[k].setZero();
     }
-    if (repeat) w.world->stepped.push_back(w.blocks[k].body.get());
+    if (repeat) {
+      w.world->stepped.push_back(w.blocks[k].body.get());
+      ++stepped_bodies;
+    }
   }
 }
 
@@ -493,6 +496,7 @@ using namespace detail;
 
 std::size_t RigidWorld::sleepers_woken_by_solve() const { return impl_->sleep.sleepers_woken_by_solve; }
 std::size_t RigidWorld::solves_repeated() const { return impl_->world->repeated_solves; }
+std::uint64_t RigidWorld::stepped_body_count() const { return impl_->sleep.stepped_bodies; }
 
 void RigidWorld::set_wake_boxes(const std::vector<std::pair<Vec3, Vec3>>& boxes) { impl_->sleep.wake_boxes = boxes; }
 

@@ -99,6 +99,9 @@ struct FarSleep {
   std::vector<char> moving, woken, reset, moving_seen;
   std::vector<std::uint32_t> adj_start, adj, bfs_a, bfs_b;
   std::vector<std::pair<std::uint32_t, std::uint32_t>> edges;
+  /// Dynamic blocks stepped, summed over the sub-steps (RigidWorld::stepped_body_count; counted
+  /// with far sleep off too).
+  std::uint64_t stepped_bodies = 0;
 
  private:
   // update_sleep's steps.

@@ -211,6 +211,7 @@ void RigidWorld::substep() {
       if (hold_loads && (m.state[k] & (kHeldLoad | Impl::kFixed)) == kHeldLoad) m.sleep.hold_caller_load(m, k, h);
       continue;
     }
+    ++m.sleep.stepped_bodies;
     BlockSlot& s = m.blocks[k];
     btRigidBody& b = *s.body;
     if (m.world->managed_sleep) stepped.push_back(&b);
