@@ -287,6 +287,10 @@ class RigidWorld {
   std::size_t sleepers_woken_by_solve() const;
   /// Far sleep: sub-step solves done again because a solve woke sleeping blocks.
   std::size_t solves_repeated() const;
+  /// Dynamic blocks stepped (integrated by the solver), summed over the sub-steps since the world was
+  /// made: every dynamic block at every sub-step without far sleep; with it the awake ones, and those
+  /// a solve woke once more in the sub-step's repeated solve. What sleeping saves, counted.
+  std::uint64_t stepped_body_count() const;
 
   /// Sum of 1/2 m v^2 + 1/2 w.I w over dynamic blocks, J.
   double kinetic_energy() const;
@@ -335,7 +339,7 @@ class RigidWorld {
   /// breakable).
   std::size_t overloaded_joint_count() const;
 
-  // ---- checkpoint (docs/output.md, "Checkpoints"; at the end of rigid_world.cpp) ----
+  // ---- checkpoint (docs/output.md, "Checkpoints"; world_state.cpp) ----
   /// Saves everything a later sub-step reads, under keys prefix + "...": per block slot its
   /// liveness, generation, Bullet transform, interpolation transform, velocities, activation
   /// state, deactivation time, hit fraction, friction and pending external loads; per joint slot
