@@ -44,7 +44,7 @@ void print_warnings(const std::vector<std::string>& warnings, std::FILE* err) {
 
 /// `restart_changes`: the stability limits the restarts that led here moved (Restart::changes),
 /// kept as the root attribute "restart_changes" when there are any.
-io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm, bool fsync,
+io::RunFileMeta run_file_meta(const scene::Scene& s, const sim::CalibratedIce& ice, const par::Comm& comm, bool fsync,
                               const std::vector<std::string>& restart_changes) {
   io::RunFileMeta meta;
   if (!restart_changes.empty())
@@ -53,7 +53,7 @@ io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm, bool
   meta.fsync_on_flush = fsync;
   meta.scene_text = s.json.dump(2);
   meta.program_version = HYBRIDSIM_VERSION;
-  meta.root_attributes.emplace_back("calibrated_ice", sim::calibrated_ice_to_json(sim::calibrate_ice(s)).dump());
+  meta.root_attributes.emplace_back("calibrated_ice", sim::calibrated_ice_to_json(ice).dump());
   meta.comm = &comm;
   return meta;
 }
@@ -186,7 +186,7 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   out << "bonds:            " << b.bonds << " (" << sci(b.particles ? 2.0 * b.bonds / b.particles : 0.0, 3)
       << " per particle)\n";
   {
-    const sim::CalibratedIce ci = sim::calibrate_ice(s);
+    const sim::CalibratedIce& ci = b.calibrated;
     for (const auto& w : ci.warnings) err << "warning: " << w << "\n";
     out << "ice:              " << ci.model << ": k_n = " << sci(ci.kn, 4) << " N/m, k_s = " << sci(ci.ks, 4)
         << " N/m; lattice E = " << sci(ci.youngs_modulus, 4) << " Pa, nu = " << sci(ci.poisson_ratio, 3)
@@ -329,7 +329,9 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   // 1. load: the scene file, --set overrides applied, validated
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   print_warnings(s.warnings, progress);
-  print_warnings(sim::calibrate_ice(s).warnings, progress);
+  // The scene's ice, once for the run: its warnings here, then the build and the run file use it.
+  const sim::CalibratedIce ice = sim::calibrate_ice(s);
+  print_warnings(ice.warnings, progress);
   // --restart: the checkpoint and the rows before it are read before anything is created (the
   // output may be the restarted file itself); the output defaults to that run file.
   std::optional<Restart> restart;
@@ -343,7 +345,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     std::fprintf(progress, "hybridsim: restart changes %s\n", changes[k].c_str());
   // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
   const auto t_setup = Clock::now();
-  sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit};
+  sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit, .calibrated = &ice};
   // A restart takes the relaxed ridge from the checkpoint instead of relaxing again.
   if (restart) build.restart_state = restart->all.empty() ? &restart->state : &restart->all.front();
   std::optional<sim::Simulation> built;
@@ -366,7 +368,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   }
   sim::Simulation& sim = *built;
   print_warnings(sim.warnings(), progress);
-  io::RunFile file(out_path, run_file_meta(s, comm, opt.fsync, changes));
+  io::RunFile file(out_path, run_file_meta(s, sim.built().calibrated, comm, opt.fsync, changes));
   sim::Recorders rec(sim, s, comm);
   rec.declare(file);
   const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);

@@ -58,6 +58,9 @@ struct BuildOptions {
   /// Restart: the checkpoint's state (one rank's), whose relaxed rigid world replaces the
   /// relaxation (HybridSystem::restore_relaxation).
   const StateArchive* restart_state = nullptr;
+  /// The scene's calibrate_ice when the caller has computed it already (once per run); computed
+  /// by build_simulation when null. Kept as Built::calibrated.
+  const CalibratedIce* calibrated = nullptr;
   /// Called every rigid step of the relaxation (progress lines); true stops it: build_simulation
   /// then throws RelaxationStopped.
   bridge::RelaxProgressFn relax_progress{};
