@@ -11,7 +11,6 @@
 #include "app/run_summary.h"
 #include "app/stop_signal.h"
 #include "app/text.h"
-#include "bonded/engine.h"
 #include "common/error.h"
 #include "io/run_file.h"
 #include "parallel/comm.h"
@@ -111,13 +110,14 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
   }
   const double D = s.material.particle_diameter;
   const double est = vol / (D * D * D / std::sqrt(2.0));  // particles if all were converted
-  const auto& r = sim.hybrid().report();
+  const sim::RunStats st = sim.run_stats();
+  const sim::BlockReport& r = st.blocks;
   out << "blocks:           " << hsu.blocks.size() << " rigid (" << hsu.ridge_blocks_in_file << " in the ridge file";
   if (fixed) out << ", " << fixed << " fixed";
   if (hsu.loose_blocks_dropped)
     out << ", " << hsu.loose_blocks_dropped << " without a joint left out: blocks.loose_blocks";
   out << "), " << hsu.joints.size() << " freeze joints, " << sci(vol, 4) << " m^3 of ice (~" << sci(est, 3)
-      << " particles if all converted); conversion \"" << bridge::to_string(hsu.def.mode) << "\"\n";
+      << " particles if all converted); conversion \"" << st.conversion << "\"\n";
   out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
       << " DEM steps (stability limit " << sci(r.rigid_dt_limit, 4) << " s)\n";
   const auto& x = s.blocks.relax;
@@ -171,8 +171,7 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
       {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit, .relax = false});
   for (const auto& w : sim.warnings()) err << "warning: " << w << "\n";
   const sim::Built& b = sim.built();
-  const bonded::Engine& e = sim.engine();
-  const double dt = e.dt(), crit = e.critical_time_step();
+  const double dt = sim.dt(), crit = sim.critical_time_step();
   const sim::Schedule& sc = sim.schedule();
   const double psteps = static_cast<double>(b.particles) * sc.total_steps;
   const std::uint64_t rows = sc.total_steps / sc.output_every + 1;
@@ -226,7 +225,7 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
       << " particle-steps at ~" << sci(kParticleStepsPerSecond, 2) << "/s, one core)\n";
   out << "output:           " << (opt.output.empty() ? s.output : opt.output) << "\n";
   warn_past_limits(err, psteps / kParticleStepsPerSecond, file_bytes, opt.output.empty() ? s.output : opt.output);
-  e.check_time_step();  // InputError at /time/dt, after the figures that explain it
+  sim.check_time_step();  // InputError at /time/dt, after the figures that explain it
   out << "ok\n";
   return 0;
 }
@@ -247,7 +246,7 @@ void keep_last_good_and_close(const sim::Simulation& sim, sim::Recorders& rec, i
   }
   file.close();
   std::fprintf(progress, "hybridsim: series rows up to the last output before t = %g s%s kept in %s\n",
-               sim.engine().time(), kept.c_str(), out_path.c_str());
+               sim.time(), kept.c_str(), out_path.c_str());
 }
 
 /// A word of a shell command, quoted when it needs it.
@@ -274,7 +273,7 @@ std::string resume_command(const RunOptions& opt, const std::string& out_path, c
 int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const sim::Simulation& sim, double wall,
                    const std::string& out_path, const std::string& resume, std::FILE* progress) {
   const std::uint64_t steps = sim.schedule().total_steps;
-  const double t = sim.engine().time();
+  const double t = sim.time();
   std::fprintf(progress,
                "hybridsim: stopped by %s after step %llu of %llu (t = %s s of %g s, %.1f s wall). Series rows up "
                "to t = %s s%s are in %s (closed)%s; no /analysis was written.\n"
@@ -291,10 +290,10 @@ int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const si
 
 /// The relaxation's look outside after each rigid step: a progress line every 5 s of wall, and
 /// whether SIGINT/SIGTERM asks it to stop (under MPI agreed every kMpiPollSteps calls).
-std::function<bool(const bridge::RelaxProgress&)> relaxation_poll(const scene::Scene& s, const par::Comm& comm,
+std::function<bool(const sim::RelaxProgress&)> relaxation_poll(const scene::Scene& s, const par::Comm& comm,
                                                                   const StopSignals& signals, std::FILE* progress) {
   return [&s, &comm, &signals, progress, last_line = Clock::now(),
-          calls = std::uint64_t{0}](const bridge::RelaxProgress& p) mutable {
+          calls = std::uint64_t{0}](const sim::RelaxProgress& p) mutable {
     if (seconds_since(last_line) >= 5.0) {
       last_line = Clock::now();
       std::fprintf(progress,
@@ -390,7 +389,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
       bar.start_at(last);
       std::fprintf(progress, "hybridsim: restarted from %s at step %llu (t = %s s)\n",
                    restart->checkpoint_file.c_str(), static_cast<unsigned long long>(last),
-                   sci(sim.engine().time(), 6).c_str());
+                   sci(sim.time(), 6).c_str());
       restart.reset();
     } else {
       rec.write_initial(sim, file);  // row 0: the initial state
@@ -399,7 +398,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
     for (std::uint64_t k = last + 1; k <= steps; ++k) {
       sim.step();                    // particles one DEM step; blocks every rigid step
       rec.after_step(k, sim, file);  // sums and peaks; rows and snapshots when due
-      bar.update(k, sim.engine());   // progress line
+      bar.update(k, sim);            // progress line
       last = k;
       const PollResult p = poll.after_step(k, steps);
       if (p.stop) {  // finish here: a checkpoint, the rows (and snapshot) of this step, then close below
