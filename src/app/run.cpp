@@ -317,102 +317,116 @@ std::function<bool(const sim::RelaxProgress&)> relaxation_poll(const scene::Scen
 
 }  // namespace
 
-int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
-  const par::Comm& comm = opt.comm ? *opt.comm : par::serial();
-  // The first SIGINT/SIGTERM is recorded, not fatal, from here to the return: the relaxation polls
-  // it (stop, nothing written), the loop polls it (finish the step, checkpoint, close); one that
-  // arrives between the two stops the loop at its first poll (step 1, or 16 under MPI), and one
-  // after the last step lets the report finish, so a single signal never kills the process with
-  // its run file open (a second one does: the handler is one-shot).
-  StopSignals signals;
-  // 1. load: the scene file, --set overrides applied, validated
-  const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
-  print_warnings(s.warnings, progress);
-  // The scene's ice, once for the run: its warnings here, then the build and the run file use it.
-  const sim::CalibratedIce ice = sim::calibrate_ice(s);
-  print_warnings(ice.warnings, progress);
-  // --restart: the checkpoint and the rows before it are read before anything is created (the
-  // output may be the restarted file itself); the output defaults to that run file.
-  std::optional<Restart> restart;
-  if (!opt.restart.empty()) restart = read_restart(opt.restart, s, comm);
-  const std::string out_path =
-      !opt.output.empty() ? opt.output : restart ? io::strip_partial(restart->run_file) : s.output;
-  check_run_output(out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
-  const std::string ckpt_path = io::checkpoint_path(out_path);
-  const std::vector<std::string> changes = restart ? restart->changes : std::vector<std::string>{};
-  for (std::size_t k = restart ? restart->carried_changes : 0; k < changes.size(); ++k)
-    std::fprintf(progress, "hybridsim: restart changes %s\n", changes[k].c_str());
-  // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
-  const auto t_setup = Clock::now();
-  sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit, .calibrated = &ice};
-  // A restart takes the relaxed ridge from the checkpoint instead of relaxing again.
-  if (restart) build.restart_state = restart->all.empty() ? &restart->state : &restart->all.front();
-  std::optional<sim::Simulation> built;
-  {
-    // The relaxation before the freeze may take minutes: a progress line every few seconds, and
-    // SIGINT/SIGTERM stop it (nothing is written yet: exit 128 + signal). Every rank relaxes
-    // alike, so under MPI they agree on a stop every 16 rigid steps.
-    build.relax_progress = relaxation_poll(s, comm, signals, progress);
-    try {
-      built.emplace(sim::build_simulation(s, comm, build));
-    } catch (const sim::RelaxationStopped& e) {
-      const int sig = signals.received() ? signals.received() : SIGINT;
-      std::fprintf(progress,
-                   "hybridsim: stopped by %s during the relaxation before the freeze (t = %s s of relaxation, "
-                   "%.1f s wall); nothing was written (the run file is made after the relaxation) and there is no "
-                   "checkpoint: run it again to start over.\nhybridsim: exit code %d.\n",
-                   signal_name(sig), sci(e.time, 4).c_str(), seconds_since(t_setup), stopped_exit_code(sig));
-      return stopped_exit_code(sig);
-    }
-  }
-  sim::Simulation& sim = *built;
-  print_warnings(sim.warnings(), progress);
-  io::RunFile file(out_path, run_file_meta(s, sim.built().calibrated, comm, opt.fsync, changes));
-  sim::Recorders rec(sim, s, comm);
-  rec.declare(file);
-  const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);
+namespace {
 
-  // 3. loop: step, then the recorders (per-step sums; rows and snapshots when due), then the
-  // poll: a wall-clock flush when due, a graceful stop on SIGINT/SIGTERM
+/// What a run reads before it builds anything: the scene, its ice, a restart's checkpoint and
+/// where the output goes.
+struct RunInput {
+  scene::Scene s;
+  sim::CalibratedIce ice;           ///< calibrate_ice(s), once for the run (warnings, build, run file)
+  std::optional<Restart> restart;   ///< --restart: the checkpoint and the rows before it
+  std::string out_path, ckpt_path;  ///< the run file and its checkpoint
+  std::vector<std::string> changes; ///< Restart::changes (none without a restart)
+};
+
+/// 1. load: the scene file, --set overrides applied, validated; with --restart the checkpoint and
+/// the rows before it, read before anything is created (the output may be the restarted file
+/// itself; it defaults to that run file). The output path is checked here, before the long work.
+RunInput load_run(const RunOptions& opt, const par::Comm& comm, std::FILE* progress) {
+  RunInput in;
+  in.s = scene::load_scene_file(opt.scene_path, opt.overrides);
+  const scene::Scene& s = in.s;
+  print_warnings(s.warnings, progress);
+  in.ice = sim::calibrate_ice(s);
+  print_warnings(in.ice.warnings, progress);
+  if (!opt.restart.empty()) in.restart = read_restart(opt.restart, s, comm);
+  in.out_path = !opt.output.empty() ? opt.output : in.restart ? io::strip_partial(in.restart->run_file) : s.output;
+  check_run_output(in.out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
+  in.ckpt_path = io::checkpoint_path(in.out_path);
+  if (in.restart) in.changes = in.restart->changes;
+  for (std::size_t k = in.restart ? in.restart->carried_changes : 0; k < in.changes.size(); ++k)
+    std::fprintf(progress, "hybridsim: restart changes %s\n", in.changes[k].c_str());
+  return in;
+}
+
+/// 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share. A restart
+/// takes the relaxed ridge from the checkpoint instead of relaxing again. The relaxation before
+/// the freeze may take minutes: a progress line every few seconds, and SIGINT/SIGTERM stop it
+/// (nothing is written yet): then no simulation, and `stopped` = 128 + signal. Every rank relaxes
+/// alike, so under MPI they agree on a stop every 16 rigid steps.
+std::optional<sim::Simulation> build_run(const RunOptions& opt, const RunInput& in, const par::Comm& comm,
+                                         const StopSignals& signals, Clock::time_point t_setup, std::FILE* progress,
+                                         int& stopped) {
+  sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit, .calibrated = &in.ice};
+  if (in.restart) build.restart_state = in.restart->all.empty() ? &in.restart->state : &in.restart->all.front();
+  build.relax_progress = relaxation_poll(in.s, comm, signals, progress);
+  std::optional<sim::Simulation> built;
+  try {
+    built.emplace(sim::build_simulation(in.s, comm, build));
+  } catch (const sim::RelaxationStopped& e) {
+    const int sig = signals.received() ? signals.received() : SIGINT;
+    std::fprintf(progress,
+                 "hybridsim: stopped by %s during the relaxation before the freeze (t = %s s of relaxation, "
+                 "%.1f s wall); nothing was written (the run file is made after the relaxation) and there is no "
+                 "checkpoint: run it again to start over.\nhybridsim: exit code %d.\n",
+                 signal_name(sig), sci(e.time, 4).c_str(), seconds_since(t_setup), stopped_exit_code(sig));
+    stopped = stopped_exit_code(sig);
+  }
+  return built;
+}
+
+/// How the loop ended.
+struct LoopEnd {
+  int stop = 0;             ///< the signal that stopped the run, 0 if none
+  std::uint64_t last = 0;   ///< the last step completed
+  std::uint64_t first = 0;  ///< the step this process started from (a restart's checkpoint step)
+  double wall = 0.0;        ///< s of the loop
+};
+
+/// 3. loop: step, then the recorders (per-step sums; rows and snapshots when due), then the
+/// poll: a wall-clock flush when due, a graceful stop on SIGINT/SIGTERM (a checkpoint, the rows
+/// of that step). Closes the file; after an instability the last good state is kept first.
+LoopEnd run_loop(const RunOptions& opt, RunInput& in, sim::Simulation& sim, sim::Recorders& rec, io::RunFile& file,
+                 const par::Comm& comm, const StopSignals& signals, std::FILE* progress) {
   const auto t0 = Clock::now();
   const std::uint64_t steps = sim.schedule().total_steps;
-  ProgressLine bar(progress, s.time.duration, steps);
-  int stop = 0;           // the signal that stopped the run, 0 if none
-  std::uint64_t last = 0;  // the last step completed
-  std::uint64_t first = 0;  // the step this process started from (a restart's checkpoint step)
+  ProgressLine bar(progress, in.s.time.duration, steps);
+  LoopEnd end;
   const std::uint64_t ckpt_every = sim.schedule().checkpoint_every;
   try {
     LoopPoll poll(comm, signals, opt.flush_interval);
-    if (restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
-      last = apply_restart(*restart, sim, rec, file, progress);
-      first = last;
-      bar.start_at(last);
+    if (in.restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
+      end.last = apply_restart(*in.restart, sim, rec, file, progress);
+      end.first = end.last;
+      bar.start_at(end.last);
       std::fprintf(progress, "hybridsim: restarted from %s at step %llu (t = %s s)\n",
-                   restart->checkpoint_file.c_str(), static_cast<unsigned long long>(last),
+                   in.restart->checkpoint_file.c_str(), static_cast<unsigned long long>(end.last),
                    sci(sim.time(), 6).c_str());
-      restart.reset();
+      in.restart.reset();
     } else {
       rec.write_initial(sim, file);  // row 0: the initial state
     }
     file.flush();
-    for (std::uint64_t k = last + 1; k <= steps; ++k) {
+    for (std::uint64_t k = end.last + 1; k <= steps; ++k) {
       sim.step();                    // particles one DEM step; blocks every rigid step
       rec.after_step(k, sim, file);  // sums and peaks; rows and snapshots when due
       bar.update(k, sim);            // progress line
-      last = k;
+      end.last = k;
       const PollResult p = poll.after_step(k, steps);
       if (p.stop) {  // finish here: a checkpoint, the rows (and snapshot) of this step, then close below
-        stop = p.stop;
-        if (k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm, changes);  // before write_stop's extra rows
+        end.stop = p.stop;
+        if (k < steps) write_checkpoint(in.ckpt_path, in.s, sim, rec, file, comm, in.changes);  // before write_stop's extra rows
         rec.write_stop(k, sim, file);
         break;
       }
-      if (ckpt_every && k % ckpt_every == 0 && k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm, changes);
-      else if (p.flush) file.flush();
+      if (ckpt_every && k % ckpt_every == 0 && k < steps)
+        write_checkpoint(in.ckpt_path, in.s, sim, rec, file, comm, in.changes);
+      else if (p.flush)
+        file.flush();
     }
   } catch (const SimulationError&) {
     bar.end();
-    keep_last_good_and_close(sim, rec, file, out_path, progress);
+    keep_last_good_and_close(sim, rec, file, in.out_path, progress);
     throw;
   } catch (const std::exception& ex) {
     if (!comm.parallel()) throw;
@@ -424,15 +438,43 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   }
   bar.end();
   file.close();
-  const double wall = seconds_since(t0);
-  if (stop) return report_stopped(stop, last, s, sim, wall, out_path, resume_command(opt, out_path, comm), progress);
+  end.wall = seconds_since(t0);
+  return end;
+}
+
+}  // namespace
+
+int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
+  const par::Comm& comm = opt.comm ? *opt.comm : par::serial();
+  // The first SIGINT/SIGTERM is recorded, not fatal, from here to the return: the relaxation polls
+  // it (stop, nothing written), the loop polls it (finish the step, checkpoint, close); one that
+  // arrives between the two stops the loop at its first poll (step 1, or 16 under MPI), and one
+  // after the last step lets the report finish, so a single signal never kills the process with
+  // its run file open (a second one does: the handler is one-shot).
+  StopSignals signals;
+  RunInput in = load_run(opt, comm, progress);  // 1. load
+  const scene::Scene& s = in.s;
+  const auto t_setup = Clock::now();
+  int stopped = 0;
+  std::optional<sim::Simulation> built = build_run(opt, in, comm, signals, t_setup, progress, stopped);  // 2. build
+  if (!built) return stopped;
+  sim::Simulation& sim = *built;
+  print_warnings(sim.warnings(), progress);
+  io::RunFile file(in.out_path, run_file_meta(s, sim.built().calibrated, comm, opt.fsync, in.changes));
+  sim::Recorders rec(sim, s, comm);
+  rec.declare(file);
+  const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);
+  const LoopEnd end = run_loop(opt, in, sim, rec, file, comm, signals, progress);  // 3. loop
+  if (end.stop)
+    return report_stopped(end.stop, end.last, s, sim, end.wall, in.out_path, resume_command(opt, in.out_path, comm),
+                          progress);
 
   // 4. report: pieces, ISO beside the run, the hybrid outcome -> /analysis and the summary
   const sim::RunFigures fig = rec.figures();
   const sim::RunReport an = sim::analyse_run(sim, s, fig, comm);
   comm.barrier();  // every rank's close has completed before rank 0 reopens the file
-  if (comm.rank() == 0) sim::write_analysis(out_path, an);
-  print_summary(out, s, sim, fig, an, RunEnd{start, wall, out_path, first}, comm);
+  if (comm.rank() == 0) sim::write_analysis(in.out_path, an);
+  print_summary(out, s, sim, fig, an, RunEnd{start, end.wall, in.out_path, end.first}, comm);
   if (signals.received())
     std::fprintf(progress, "hybridsim: %s received after the last step: the run was complete and its report is written\n",
                  signal_name(signals.received()));
