@@ -302,79 +302,102 @@ RestedRidge ridge_at_rest(const par::Comm& comm, const std::string& path, const 
   return out;
 }
 
-}  // namespace
+/// The bench's world before it is built: the ridge file, the pier's place and the scene (its
+/// blocks from the ridge settled again in this world unless idle or --as-generated).
+struct HybridBench {
+  std::string path;         ///< the ridge file
+  rigid::RidgeResult ridge;
+  double pier_x = 0.0;
+  RestedRidge rest;         ///< the ridge settled again in the bench's world; empty path: as generated
+  scene::Scene s;
+};
 
-nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) {
-  const auto t0 = Clock::now();
-  const std::string path = ridge_path(opt);
-  const rigid::RidgeResult ridge = io::load_ridge(path);
-  const double pier_x = std::isnan(opt.pier_x) ? default_pier_x(ridge) : opt.pier_x;
-  nlohmann::json sj = bench_scene(ridge, path, !opt.no_far_sleep, opt.idle, pier_x);
-  RestedRidge rest;
+HybridBench hybrid_bench_scene(const par::Comm& comm, const BenchOptions& opt) {
+  HybridBench b;
+  b.path = ridge_path(opt);
+  b.ridge = io::load_ridge(b.path);
+  b.pier_x = std::isnan(opt.pier_x) ? default_pier_x(b.ridge) : opt.pier_x;
+  nlohmann::json sj = bench_scene(b.ridge, b.path, !opt.no_far_sleep, opt.idle, b.pier_x);
   if (!opt.idle && !opt.as_generated) {  // (idle: nothing touches the ridge, which is left as generated)
     scene::Scene s0 = scene::parse_scene(sj);
-    rest = ridge_at_rest(comm, path, ridge, s0);
-    sj["blocks"]["ridge_file"] = std::filesystem::absolute(rest.path).string();
+    b.rest = ridge_at_rest(comm, b.path, b.ridge, s0);
+    sj["blocks"]["ridge_file"] = std::filesystem::absolute(b.rest.path).string();
   }
-  scene::Scene s = scene::parse_scene(sj);
+  b.s = scene::parse_scene(sj);
   // The paper-size ridge is a standalone one (generated under fixed boxes, not this sheet): timed
   // here, not asked to be at rest, so the run's refusal of such a file is waived.
-  s.blocks.check_ridge_generation = false;
-  sim::Simulation sim = sim::build_simulation(s, comm);
-  const double setup = std::chrono::duration<double>(Clock::now() - t0).count();
-  auto& hy = sim.hybrid();
-  const rigid::RigidWorld& world = *hy.world();
+  b.s.blocks.check_ridge_generation = false;
+  return b;
+}
+
+/// The blocks of the world that are not fixed; InputError when the pier left none.
+std::size_t dynamic_blocks(const rigid::RigidWorld& world, const HybridBench& b) {
   std::size_t dynamic = 0;
   for (const rigid::BlockId id : world.blocks()) dynamic += !world.fixed(id);
   if (dynamic == 0)
-    throw InputError("/bench/pier_x", "no block of '" + path + "' is left in the bench's world: the pier at x = " +
-                                          std::to_string(pier_x) +
+    throw InputError("/bench/pier_x", "no block of '" + b.path + "' is left in the bench's world: the pier at x = " +
+                                          std::to_string(b.pier_x) +
                                           " m reaches every block (a ridge smaller than the pier); place it with "
                                           "--pier-x, e.g. 30 m from the ridge's axis");
-  // Warm-up, untimed: the steps up to the second rigid step. The world's first sub-step does the
-  // set-up's remaining work once (the broadphase's first pass over every pair of 29,000 blocks,
-  // every block put to sleep): 350 ms on the paper-size ridge, then 40 ms, then ~2 ms per rigid
-  // step; timed, it was 200 steps' rigid share by itself (0.21 against 0.08 over 1,000 steps).
-  // Reported as warmup_rigid_ms.
+  return dynamic;
+}
+
+/// What the warm-up and the timed steps measured (wall times the slowest rank's).
+struct HybridTiming {
   std::uint64_t warmup_steps = 0;
-  const double warm_rigid0 = hy.report().seconds_rigid;
-  const auto tw = Clock::now();
-  while (hy.report().rigid_steps < 2 && warmup_steps < 1000) {
-    sim.step();
-    ++warmup_steps;
-  }
-  const double warmup_wall = comm.max(std::chrono::duration<double>(Clock::now() - tw).count());
-  const double warmup_rigid_s = comm.max(hy.report().seconds_rigid - warm_rigid0);
-  const bridge::HybridReport r0 = hy.report();
-  const std::uint64_t steps = opt.steps > 0 ? opt.steps : 200;
+  double warmup_wall = 0.0, warmup_rigid_s = 0.0;
+  bridge::HybridReport r0;  ///< the report when the timed steps began
   double awake_sum = 0.0, moving_sum = 0.0;
   std::size_t awake_max = 0, awake_samples = 0;
+  std::size_t woken0 = 0, repeated0 = 0;  ///< far sleep's counts when the timed steps began
+  double wall = 0.0;
+};
+
+/// Warm-up, untimed: the steps up to the second rigid step. The world's first sub-step does the
+/// set-up's remaining work once (the broadphase's first pass over every pair of 29,000 blocks,
+/// every block put to sleep): 350 ms on the paper-size ridge, then 40 ms, then ~2 ms per rigid
+/// step; timed, it was 200 steps' rigid share by itself (0.21 against 0.08 over 1,000 steps).
+/// Reported as warmup_rigid_ms. Then `steps` timed steps, the awake and moving blocks sampled at
+/// every rigid step.
+HybridTiming time_hybrid(sim::Simulation& sim, const par::Comm& comm, std::uint64_t steps) {
+  HybridTiming t;
+  const bridge::HybridSystem& hy = sim.hybrid();
+  const rigid::RigidWorld& world = *hy.world();
+  const double warm_rigid0 = hy.report().seconds_rigid;
+  const auto tw = Clock::now();
+  while (hy.report().rigid_steps < 2 && t.warmup_steps < 1000) {
+    sim.step();
+    ++t.warmup_steps;
+  }
+  t.warmup_wall = comm.max(std::chrono::duration<double>(Clock::now() - tw).count());
+  t.warmup_rigid_s = comm.max(hy.report().seconds_rigid - warm_rigid0);
+  t.r0 = hy.report();
   std::uint64_t rigid_before = hy.report().rigid_steps;
-  const std::size_t woken0 = world.sleepers_woken_by_solve(), repeated0 = world.solves_repeated();
+  t.woken0 = world.sleepers_woken_by_solve();
+  t.repeated0 = world.solves_repeated();
   const auto t1 = Clock::now();
   for (std::uint64_t k = 0; k < steps; ++k) {
     sim.step();
     if (hy.report().rigid_steps != rigid_before) {
       rigid_before = hy.report().rigid_steps;
       const std::size_t a = world.awake_count();
-      awake_sum += static_cast<double>(a);
+      t.awake_sum += static_cast<double>(a);
       // awake blocks faster than the far-sleep speed: what keeps the rest of the ridge awake
-      moving_sum += static_cast<double>(world.moving_count());
-      awake_max = std::max(awake_max, a);
-      ++awake_samples;
+      t.moving_sum += static_cast<double>(world.moving_count());
+      t.awake_max = std::max(t.awake_max, a);
+      ++t.awake_samples;
     }
   }
-  const double wall = comm.max(std::chrono::duration<double>(Clock::now() - t1).count());
-  const bridge::HybridReport& r = hy.report();
-  const double rigid_s = comm.max(r.seconds_rigid - r0.seconds_rigid);
-  const double dem_s = comm.max(r.seconds_bonded - r0.seconds_bonded);
-  const double bridge_s = comm.max(r.seconds_bridge - r0.seconds_bridge);
-  const auto rigid_steps = static_cast<double>(r.rigid_steps - r0.rigid_steps);
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  nlohmann::json j;
-  j["name"] = "hybrid";
-  j["ridge_file"] = path;
+  t.wall = comm.max(std::chrono::duration<double>(Clock::now() - t1).count());
+  return t;
+}
+
+/// The ridge's part of the bench's line: the file, its settling again in the bench's world, and
+/// whether the generator left it at rest (with a warning when it did not).
+void add_ridge_json(nlohmann::json& j, const HybridBench& b, const par::Comm& comm) {
+  const rigid::RidgeResult& ridge = b.ridge;
+  const RestedRidge& rest = b.rest;
+  j["ridge_file"] = b.path;
   // The ridge settled again in the bench's world (ridge_at_rest); empty: the file as generated.
   j["ridge_at_rest_file"] = rest.path;
   if (rest.made) {
@@ -385,18 +408,7 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
     j["ridge_at_rest_last_second_max_displacement_m"] = rest.stats.last_second_max_displacement;
     j["ridge_at_rest_kinetic_energy_per_block_J"] = rest.stats.final_kinetic_energy_per_block;
   }
-  j["blocks"] = dynamic;
-  j["fixed_blocks"] = world.block_count() - dynamic;
   j["blocks_in_file"] = ridge.blocks.size();
-  j["joints"] = world.joint_count();
-  j["particles"] = sim.engine().global_particle_count();
-  j["far_sleep"] = !opt.no_far_sleep;
-  j["idle"] = opt.idle;
-  j["pier_x_m"] = pier_x;
-  // the world's ice and water: the ridge file's own (its generation's), so that it is at rest
-  j["ice_density"] = s.material.density;
-  j["friction"] = s.material.friction;
-  j["water_density"] = s.water.density;
   // Whether the generator left the ridge at rest: a ridge that was still creeping when its settle
   // time ran out (settled false) wakes by itself, and the awake and moving counts, the rigid share
   // with them, measure that, not far sleep (docs/rigid.md, "Far sleep").
@@ -413,19 +425,32 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
                  "need not help (the paper-size ridge's settle energy wanders between 0.009 and 0.08 J per "
                  "block at the settle step of 1/30 s); a smaller ridge.settle.dt leaves it closer to rest, "
                  "at more cost (docs/rigid.md, \"Far sleep\")\n",
-                 path.c_str(), ridge.def.settle.max_time, ridge.stats.final_asleep_blocks, ridge.blocks.size(),
+                 b.path.c_str(), ridge.def.settle.max_time, ridge.stats.final_asleep_blocks, ridge.blocks.size(),
                  ridge.stats.final_kinetic_energy_per_block, ridge.def.settle.kinetic_energy_per_block,
                  rest.path.empty() ? ""
                                    : " (the bench settled those near its sheet and pier again, ridge_at_rest; the "
                                      "rest lie as generated)");
+}
+
+/// The timed figures of the bench's line: per step, per rigid step, shares and far sleep's counts.
+void add_timing_json(nlohmann::json& j, const HybridTiming& t, const sim::Simulation& sim, std::uint64_t steps,
+                     const par::Comm& comm) {
+  const bridge::HybridReport& r = sim.hybrid().report();
+  const bridge::HybridReport& r0 = t.r0;
+  const rigid::RigidWorld& world = *sim.hybrid().world();
+  const double wall = t.wall;
+  const double rigid_s = comm.max(r.seconds_rigid - r0.seconds_rigid);
+  const double dem_s = comm.max(r.seconds_bonded - r0.seconds_bonded);
+  const double bridge_s = comm.max(r.seconds_bridge - r0.seconds_bridge);
+  const auto rigid_steps = static_cast<double>(r.rigid_steps - r0.rigid_steps);
   j["steps"] = steps;
-  j["warmup_steps"] = warmup_steps;
-  j["warmup_rigid_ms"] = 1e3 * warmup_rigid_s;
+  j["warmup_steps"] = t.warmup_steps;
+  j["warmup_rigid_ms"] = 1e3 * t.warmup_rigid_s;
   // the share with the warm-up counted as timed (its one-time set-up work included)
-  j["rigid_share_with_warmup"] = (rigid_s + warmup_rigid_s) / (wall + warmup_wall);
+  j["rigid_share_with_warmup"] = (rigid_s + t.warmup_rigid_s) / (wall + t.warmup_wall);
   j["rigid_steps"] = rigid_steps;
   j["steps_per_rigid_step"] = r.steps_per_rigid_step;
-  j["dt_s"] = sim.engine().dt();
+  j["dt_s"] = sim.dt();
   j["rigid_dt_s"] = r.rigid_dt;
   j["wall_s"] = wall;
   j["rigid_ms_per_rigid_step"] = rigid_steps > 0 ? 1e3 * rigid_s / rigid_steps : 0.0;
@@ -435,29 +460,60 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   j["rigid_share"] = rigid_s / wall;
   j["dem_share"] = dem_s / wall;
   j["bridge_share"] = bridge_s / wall;
-  j["awake_blocks_mean"] = awake_samples ? awake_sum / static_cast<double>(awake_samples) : 0.0;
-  j["awake_blocks_max"] = awake_max;
-  j["moving_blocks_mean"] = awake_samples ? moving_sum / static_cast<double>(awake_samples) : 0.0;
+  j["awake_blocks_mean"] = t.awake_samples ? t.awake_sum / static_cast<double>(t.awake_samples) : 0.0;
+  j["awake_blocks_max"] = t.awake_max;
+  j["moving_blocks_mean"] = t.awake_samples ? t.moving_sum / static_cast<double>(t.awake_samples) : 0.0;
   j["conversions"] = r.conversions - r0.conversions;
   // Far sleep: sleeping blocks a change of their load woke, and the sub-step solves done again for them.
-  j["sleepers_woken_by_solve"] = world.sleepers_woken_by_solve() - woken0;
-  j["solves_repeated"] = world.solves_repeated() - repeated0;
+  j["sleepers_woken_by_solve"] = world.sleepers_woken_by_solve() - t.woken0;
+  j["solves_repeated"] = world.solves_repeated() - t.repeated0;
+}
+
+/// The first "model name" of /proc/cpuinfo ("unknown" without one).
+std::string cpu_model() {
+  std::ifstream in("/proc/cpuinfo");
+  std::string line;
+  while (std::getline(in, line))
+    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
+  return "unknown";
+}
+
+}  // namespace
+
+nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) {
+  const auto t0 = Clock::now();
+  const HybridBench b = hybrid_bench_scene(comm, opt);
+  const scene::Scene& s = b.s;
+  sim::Simulation sim = sim::build_simulation(s, comm);
+  const double setup = std::chrono::duration<double>(Clock::now() - t0).count();
+  const rigid::RigidWorld& world = *sim.hybrid().world();
+  const std::size_t dynamic = dynamic_blocks(world, b);
+  const std::uint64_t steps = opt.steps > 0 ? opt.steps : 200;
+  const HybridTiming t = time_hybrid(sim, comm, steps);
+  rusage u{};
+  getrusage(RUSAGE_SELF, &u);
+  nlohmann::json j;
+  j["name"] = "hybrid";
+  add_ridge_json(j, b, comm);
+  j["blocks"] = dynamic;
+  j["fixed_blocks"] = world.block_count() - dynamic;
+  j["joints"] = world.joint_count();
+  j["particles"] = sim.engine().global_particle_count();
+  j["far_sleep"] = !opt.no_far_sleep;
+  j["idle"] = opt.idle;
+  j["pier_x_m"] = b.pier_x;
+  // the world's ice and water: the ridge file's own (its generation's), so that it is at rest
+  j["ice_density"] = s.material.density;
+  j["friction"] = s.material.friction;
+  j["water_density"] = s.water.density;
+  add_timing_json(j, t, sim, steps, comm);
   j["setup_s"] = setup;
   j["peak_rss_mb"] = comm.max(u.ru_maxrss / 1024.0);
   j["ranks"] = comm.size();
   // For tools/run_benchmarks.sh's CSV (`tools/run_benchmarks.sh hybrid`, with the ridge cached).
   j["particle_steps_per_s"] =
-      static_cast<double>(sim.engine().global_particle_count()) * static_cast<double>(steps) / wall;
-  {
-    std::ifstream in("/proc/cpuinfo");
-    std::string line, cpu = "unknown";
-    while (std::getline(in, line))
-      if (line.rfind("model name", 0) == 0) {
-        cpu = line.substr(line.find(':') + 2);
-        break;
-      }
-    j["cpu"] = cpu;
-  }
+      static_cast<double>(sim.engine().global_particle_count()) * static_cast<double>(steps) / t.wall;
+  j["cpu"] = cpu_model();
   j["version"] = HYBRIDSIM_VERSION;
   return j;
 }

@@ -8,7 +8,6 @@
 #include "sim/simulation.h"
 
 #include <cstdio>
-#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <regex>
@@ -165,17 +164,13 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
   try {
     std::size_t lost = 0;
     if (r.all.empty()) {  // same rank count: each rank its own state, exactly
-      sim.engine().load_state(r.state, "engine/");
-      lost = sim.hybrid().load_state(r.state, "hybrid/");
-      rec.load_state(r.state, sim);
+      lost = sim.load_checkpoint(r.state, rec);
     } else {  // another rank count: the union of the saved ranks, spread over these ranks
       std::fprintf(progress,
                    "hybridsim: the checkpoint was written by %d rank(s), this run has %d: the particles are "
                    "redistributed (the same physics; sums in another order, round-off differences)\n",
-                   r.meta.ranks, sim.engine().comm().size());
-      lost = sim.hybrid().load_state_union(r.all, "hybrid/");
-      sim.engine().load_state_union(r.all, "engine/");
-      rec.load_state(r.all.front(), sim);
+                   r.meta.ranks, sim.comm().size());
+      lost = sim.load_checkpoint(r.all, rec);
     }
     if (lost)
       std::fprintf(progress, "hybridsim: warning: %zu saved rigid contact points found no contact manifold after the "
@@ -188,7 +183,7 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
   }
   // The snapshots written up to the checkpoint (a stop's extra snapshot is not counted), then the
   // rows up to it, series by series in the order the recorders declared them.
-  io::copy_snapshots(r.run_file, r.meta.snapshots, file, sim.engine().comm().rank(), sim.engine().comm().size());
+  io::copy_snapshots(r.run_file, r.meta.snapshots, file, sim.comm().rank(), sim.comm().size());
   for (int id = 0; id < file.series_count(); ++id) {
     const std::string& path = file.series_path(id);
     const io::SeriesRows* src = nullptr;
@@ -219,51 +214,17 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
   r.series.clear();
   r.state.entries.clear();
   r.all.clear();
-  return sim.engine().step_count();
+  return sim.step_count();
 }
 
 void write_checkpoint(const std::string& ckpt_path, const scene::Scene& s, const sim::Simulation& sim,
                       const sim::Recorders& rec, io::RunFile& file, const par::Comm& comm,
                       const std::vector<std::string>& restart_changes) {
-  file.flush();  // the run file holds every row the checkpoint counts
-  StateArchive a;
-  sim.engine().save_state(a, "engine/");
-  sim.hybrid().save_state(a, "hybrid/");
-  rec.save_state(a);
-  std::vector<StateArchive> all;
-  if (comm.parallel()) {
-    const std::string mine = a.serialize();
-    par::Bytes b(sizeof(std::uint64_t) + mine.size());
-    const std::uint64_t n = mine.size();
-    std::memcpy(b.data(), &n, sizeof n);
-    std::memcpy(b.data() + sizeof n, mine.data(), mine.size());
-    const par::Bytes g = comm.gather(b);
-    if (comm.rank() != 0) return;
-    std::size_t o = 0;
-    while (o + sizeof(std::uint64_t) <= g.size()) {
-      std::uint64_t len;
-      std::memcpy(&len, g.data() + o, sizeof len);
-      o += sizeof len;
-      StateArchive r;
-      r.deserialize(g.data() + o, len);
-      o += len;
-      all.push_back(std::move(r));
-    }
-  } else {
-    all.push_back(std::move(a));
-  }
-  io::CheckpointMeta meta;
-  meta.step = sim.engine().step_count();
-  meta.time = sim.engine().time();
-  meta.ranks = comm.size();
-  meta.series_rows = file.series_count() ? file.series_rows(0) : 0;
-  meta.snapshots = file.snapshot_count();
-  meta.scene_hash = scene_identity(s, nullptr);
-  meta.scene_text = s.json.dump();
-  meta.program_version = HYBRIDSIM_VERSION;
-  meta.run_file = file.path();
-  if (!restart_changes.empty()) meta.restart_changes = nlohmann::json(restart_changes).dump();
-  io::write_checkpoint(ckpt_path, meta, all);
+  io::CheckpointMeta identity;  // the scene it belongs to; the simulation adds its step, time and rows
+  identity.scene_hash = scene_identity(s, nullptr);
+  identity.scene_text = s.json.dump();
+  if (!restart_changes.empty()) identity.restart_changes = nlohmann::json(restart_changes).dump();
+  sim.save_checkpoint(ckpt_path, identity, rec, file, comm);
 }
 
 }  // namespace hs::app

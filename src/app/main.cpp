@@ -34,6 +34,122 @@ int report_input_error(const hs::InputError& e) {
   return 2;
 }
 
+/// The options every scene command shares (run with_output: -o, --flush-interval, --fsync, --restart).
+void add_common(CLI::App* a, hs::app::RunOptions& opt, bool with_output) {
+  a->add_option("scene", opt.scene_path, "scene file (JSON, see docs/scene.md)");
+  if (with_output) {
+    a->add_option("-o,--output", opt.output, "output HDF5 file (default: <name>.h5 of the scene)");
+    a->add_option("--flush-interval", opt.flush_interval,
+                  "wall-clock seconds between writes of the series to the file (default 60); what a killed "
+                  "run keeps (docs/output.md)")
+        ->check(CLI::PositiveNumber);
+    a->add_flag("--fsync", opt.fsync, "fsync the output file after every flush (survives a machine crash)");
+    a->add_option("--restart", opt.restart,
+                  "continue the run in this run file (or its .ckpt.h5 checkpoint) from its last checkpoint; "
+                  "the output (default: that run file) holds the whole series (docs/output.md, \"Checkpoints\")");
+  }
+  a->add_option("--set", opt.overrides,
+                "override a scene field, e.g. --set ice.thickness=0.9 (value parsed as JSON, else a string); "
+                "repeatable")
+      ->allow_extra_args(false);
+  a->add_flag("--ignore-memory-limit", opt.ignore_memory_limit,
+              "build the scene even when its memory estimate exceeds the machine's available memory");
+}
+
+/// The subcommands as parsed, and the options of those that are not scene commands.
+struct Commands {
+  hs::app::RunOptions opt;
+  CLI::App *run = nullptr, *check = nullptr, *iso = nullptr, *ridge = nullptr, *calibrate = nullptr,
+           *bench = nullptr;
+  std::string ridge_scene, ridge_out;
+  std::string bench_name;
+  hs::app::BenchOptions bench_opt;
+};
+
+void add_ridge(CLI::App& app, Commands& c) {
+  c.ridge = app.add_subcommand("ridge", "build a ridge (rigid blocks rise and settle under the ice), "
+                                        "save it to HDF5 and print its report (docs/ridge.md)");
+  c.ridge->add_option("scene", c.ridge_scene,
+                      "ridge scene file (JSON with a \"ridge\" object), or a run scene with a \"ridge\" section: "
+                      "then generated with the run's ice under its floating sheet (docs/ridge.md)")
+      ->required();
+  c.ridge->add_option("-o,--output", c.ridge_out,
+                      "output HDF5 file (default: a run scene's blocks.ridge_file, else <name>_ridge.h5)");
+  c.ridge->add_flag("--ignore-memory-limit", c.opt.ignore_memory_limit,
+                    "generate even when the estimated block count exceeds the machine's available memory");
+}
+
+void add_calibrate(CLI::App& app, Commands& c) {
+  c.calibrate = app.add_subcommand("calibrate", "virtual lab tests (tension, 3-point bending, floating "
+                                                "strip) of the scene's lattice against its target ice: "
+                                                "table and JSON (docs/engine.md, \"Calibrated ice\")");
+  add_common(c.calibrate, c.opt, false);
+  c.calibrate->add_option("--tests", c.opt.calibrate_tests,
+                          "comma-separated subset of tension,bending,strip (default all)");
+  c.calibrate->add_option("--max-strip-steps", c.opt.max_strip_steps,
+                          "DEM steps of the floating-strip test above which its springs are softened and L_c scaled "
+                          "back (default 6e4)")
+      ->check(CLI::PositiveNumber);
+}
+
+void add_bench(CLI::App& app, Commands& c) {
+  c.bench = app.add_subcommand("bench", "run a built-in benchmark and print one JSON line");
+  c.bench->add_option("name", c.bench_name, "benchmark name")->required();
+  hs::app::BenchOptions& b = c.bench_opt;
+  c.bench->add_option("--lammps-data", b.lammps_data,
+                      "granular: also write the settled pack as a LAMMPS data file (tools/bench/granular.lmp)");
+  c.bench->add_option("--ridge", b.ridge,
+                      "hybrid: ridge file (default: ridge_paper_size_ridge.h5 in $HYBRIDSIM_CACHE_DIR; see "
+                      "docs/rigid.md)");
+  c.bench->add_option("--steps", b.steps, "hybrid: DEM steps timed (default 200)");
+  c.bench->add_flag("--no-far-sleep", b.no_far_sleep,
+                    "hybrid: step every block at every rigid step (the far-sleep rule off), for comparison");
+  c.bench->add_flag("--idle", b.idle,
+                    "hybrid: pier and particle sheet 300 m from the ridge, every block asleep: the cost of holding "
+                    "the ridge while nothing happens near it");
+  c.bench->add_option("--pier-x", b.pier_x,
+                      "hybrid: the pier's axis x, m (default: 3 m outside the keel's toe; -34 stands it 33 m "
+                      "into the paper-size keel)");
+  c.bench->add_flag("--as-generated", b.as_generated,
+                    "hybrid: the ridge as generated, not settled again under the bench's sheet and pier first "
+                    "(that ridge is in motion in the bench's world; docs/rigid.md)");
+}
+
+/// Every subcommand and option, bound to `c`.
+void add_commands(CLI::App& app, Commands& c) {
+  app.set_version_flag("--version", std::string("hybridsim ") + HYBRIDSIM_VERSION);
+  app.require_subcommand(0, 1);
+  add_common(&app, c.opt, true);
+  c.run = app.add_subcommand("run", "run a scene (the default command)");
+  add_common(c.run, c.opt, true);
+  c.check = app.add_subcommand("check", "validate a scene and print particle and bond counts, dt, "
+                                        "memory and run-time estimates");
+  add_common(c.check, c.opt, false);
+  c.iso = app.add_subcommand("iso", "print the ISO 19906 cone load (JSON, N) for a scene (its ice and pier) "
+                                    "or for a plain object of ISO inputs (docs/iso19906.md)");
+  add_common(c.iso, c.opt, false);
+  add_ridge(app, c);
+  add_calibrate(app, c);
+  add_bench(app, c);
+}
+
+/// Runs the parsed command (exceptions go to main).
+int dispatch(CLI::App& app, const Commands& c, const hs::par::Comm& world, std::ostream& out, std::FILE* progress) {
+  const bool root = world.rank() == 0;
+  const hs::app::RunOptions& opt = c.opt;
+  if (*c.bench) return hs::app::run_benchmark(c.bench_name, out, std::cerr, world, c.bench_opt);
+  // Ridge building is serial (a replicated rigid world gains nothing from more ranks): rank 0.
+  if (*c.ridge) return root ? hs::app::ridge_command(c.ridge_scene, c.ridge_out, std::cout, opt.ignore_memory_limit) : 0;
+  if (opt.scene_path.empty()) {
+    std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
+    return 2;
+  }
+  if (*c.iso) return hs::app::iso_command(opt, out);
+  if (*c.calibrate) return root ? hs::app::calibrate_command(opt, std::cout, stderr) : 0;
+  if (*c.check) return hs::app::check_scene(opt, out, std::cerr);
+  return hs::app::run_scene(opt, out, progress);
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -49,81 +165,9 @@ int main(int argc, char** argv) {
                " - bonded-particle DEM of sea ice against structures.\n"
                "Usage: hybridsim SCENE.json [-o OUT.h5] [--set path=value]...  (same as `hybridsim run`)",
                "hybridsim"};
-  app.set_version_flag("--version", std::string("hybridsim ") + HYBRIDSIM_VERSION);
-  app.require_subcommand(0, 1);
-
-  hs::app::RunOptions opt;
-  opt.comm = &world;
-  std::string bench_name;
-  auto add_common = [&](CLI::App* a, bool with_output) {
-    a->add_option("scene", opt.scene_path, "scene file (JSON, see docs/scene.md)");
-    if (with_output) {
-      a->add_option("-o,--output", opt.output, "output HDF5 file (default: <name>.h5 of the scene)");
-      a->add_option("--flush-interval", opt.flush_interval,
-                    "wall-clock seconds between writes of the series to the file (default 60); what a killed "
-                    "run keeps (docs/output.md)")
-          ->check(CLI::PositiveNumber);
-      a->add_flag("--fsync", opt.fsync, "fsync the output file after every flush (survives a machine crash)");
-      a->add_option("--restart", opt.restart,
-                    "continue the run in this run file (or its .ckpt.h5 checkpoint) from its last checkpoint; "
-                    "the output (default: that run file) holds the whole series (docs/output.md, \"Checkpoints\")");
-    }
-    a->add_option("--set", opt.overrides,
-                  "override a scene field, e.g. --set ice.thickness=0.9 (value parsed as JSON, else a string); "
-                  "repeatable")
-        ->allow_extra_args(false);
-    a->add_flag("--ignore-memory-limit", opt.ignore_memory_limit,
-                "build the scene even when its memory estimate exceeds the machine's available memory");
-  };
-  add_common(&app, true);
-  CLI::App* run = app.add_subcommand("run", "run a scene (the default command)");
-  add_common(run, true);
-  CLI::App* check = app.add_subcommand("check", "validate a scene and print particle and bond counts, dt, "
-                                                 "memory and run-time estimates");
-  add_common(check, false);
-  CLI::App* iso = app.add_subcommand("iso", "print the ISO 19906 cone load (JSON, N) for a scene (its ice and pier) "
-                                             "or for a plain object of ISO inputs (docs/iso19906.md)");
-  add_common(iso, false);
-  CLI::App* ridge = app.add_subcommand("ridge", "build a ridge (rigid blocks rise and settle under the ice), "
-                                               "save it to HDF5 and print its report (docs/ridge.md)");
-  std::string ridge_scene, ridge_out;
-  ridge->add_option("scene", ridge_scene,
-                    "ridge scene file (JSON with a \"ridge\" object), or a run scene with a \"ridge\" section: "
-                    "then generated with the run's ice under its floating sheet (docs/ridge.md)")
-      ->required();
-  ridge->add_option("-o,--output", ridge_out,
-                    "output HDF5 file (default: a run scene's blocks.ridge_file, else <name>_ridge.h5)");
-  ridge->add_flag("--ignore-memory-limit", opt.ignore_memory_limit,
-                  "generate even when the estimated block count exceeds the machine's available memory");
-  CLI::App* calibrate = app.add_subcommand("calibrate", "virtual lab tests (tension, 3-point bending, floating "
-                                                         "strip) of the scene's lattice against its target ice: "
-                                                         "table and JSON (docs/engine.md, \"Calibrated ice\")");
-  add_common(calibrate, false);
-  calibrate->add_option("--tests", opt.calibrate_tests, "comma-separated subset of tension,bending,strip (default all)");
-  calibrate->add_option("--max-strip-steps", opt.max_strip_steps,
-                        "DEM steps of the floating-strip test above which its springs are softened and L_c scaled "
-                        "back (default 6e4)")
-      ->check(CLI::PositiveNumber);
-  CLI::App* bench = app.add_subcommand("bench", "run a built-in benchmark and print one JSON line");
-  bench->add_option("name", bench_name, "benchmark name")->required();
-  hs::app::BenchOptions bench_opt;
-  bench->add_option("--lammps-data", bench_opt.lammps_data,
-                    "granular: also write the settled pack as a LAMMPS data file (tools/bench/granular.lmp)");
-  bench->add_option("--ridge", bench_opt.ridge,
-                    "hybrid: ridge file (default: ridge_paper_size_ridge.h5 in $HYBRIDSIM_CACHE_DIR; see docs/rigid.md)");
-  bench->add_option("--steps", bench_opt.steps, "hybrid: DEM steps timed (default 200)");
-  bench->add_flag("--no-far-sleep", bench_opt.no_far_sleep,
-                  "hybrid: step every block at every rigid step (the far-sleep rule off), for comparison");
-  bench->add_flag("--idle", bench_opt.idle,
-                  "hybrid: pier and particle sheet 300 m from the ridge, every block asleep: the cost of holding "
-                  "the ridge while nothing happens near it");
-  bench->add_option("--pier-x", bench_opt.pier_x,
-                    "hybrid: the pier's axis x, m (default: 3 m outside the keel's toe; -34 stands it 33 m "
-                    "into the paper-size keel)");
-  bench->add_flag("--as-generated", bench_opt.as_generated,
-                  "hybrid: the ridge as generated, not settled again under the bench's sheet and pier first "
-                  "(that ridge is in motion in the bench's world; docs/rigid.md)");
-
+  Commands c;
+  c.opt.comm = &world;
+  add_commands(app, c);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -132,17 +176,7 @@ int main(int argc, char** argv) {
   }
 
   try {
-    if (*bench) return hs::app::run_benchmark(bench_name, out, std::cerr, world, bench_opt);
-    // Ridge building is serial (a replicated rigid world gains nothing from more ranks): rank 0.
-    if (*ridge) return root ? hs::app::ridge_command(ridge_scene, ridge_out, std::cout, opt.ignore_memory_limit) : 0;
-    if (opt.scene_path.empty()) {
-      std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
-      return 2;
-    }
-    if (*iso) return hs::app::iso_command(opt, out);
-    if (*calibrate) return root ? hs::app::calibrate_command(opt, std::cout, stderr) : 0;
-    if (*check) return hs::app::check_scene(opt, out, std::cerr);
-    return hs::app::run_scene(opt, out, progress);
+    return dispatch(app, c, world, out, progress);
   } catch (const hs::InputError& e) {
     // Every rank reads the same scene, so every rank fails the same way: one message.
     return root ? report_input_error(e) : 2;

@@ -6,8 +6,8 @@
 #include <cstdint>
 #include <cstdio>
 
-namespace hs::bonded {
-class Engine;
+namespace hs::sim {
+class Simulation;
 }
 
 namespace hs::app {
@@ -21,7 +21,7 @@ class ProgressLine {
     last_ = Clock::now();  // (the restart's reading is not stepping time)
   }
   /// After step k: prints when it is time to (checks the clock every 64 steps).
-  void update(std::uint64_t k, const bonded::Engine& e);
+  void update(std::uint64_t k, const sim::Simulation& sim);
   /// Ends the updating line (if one is open).
   void end();
 

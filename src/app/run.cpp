@@ -11,7 +11,6 @@
 #include "app/run_summary.h"
 #include "app/stop_signal.h"
 #include "app/text.h"
-#include "bonded/engine.h"
 #include "common/error.h"
 #include "io/run_file.h"
 #include "parallel/comm.h"
@@ -44,7 +43,7 @@ void print_warnings(const std::vector<std::string>& warnings, std::FILE* err) {
 
 /// `restart_changes`: the stability limits the restarts that led here moved (Restart::changes),
 /// kept as the root attribute "restart_changes" when there are any.
-io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm, bool fsync,
+io::RunFileMeta run_file_meta(const scene::Scene& s, const sim::CalibratedIce& ice, const par::Comm& comm, bool fsync,
                               const std::vector<std::string>& restart_changes) {
   io::RunFileMeta meta;
   if (!restart_changes.empty())
@@ -53,7 +52,7 @@ io::RunFileMeta run_file_meta(const scene::Scene& s, const par::Comm& comm, bool
   meta.fsync_on_flush = fsync;
   meta.scene_text = s.json.dump(2);
   meta.program_version = HYBRIDSIM_VERSION;
-  meta.root_attributes.emplace_back("calibrated_ice", sim::calibrated_ice_to_json(sim::calibrate_ice(s)).dump());
+  meta.root_attributes.emplace_back("calibrated_ice", sim::calibrated_ice_to_json(ice).dump());
   meta.comm = &comm;
   return meta;
 }
@@ -112,13 +111,14 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
   }
   const double D = s.material.particle_diameter;
   const double est = vol / (D * D * D / std::sqrt(2.0));  // particles if all were converted
-  const auto& r = sim.hybrid().report();
+  const sim::RunStats st = sim.run_stats();
+  const sim::BlockReport& r = st.blocks;
   out << "blocks:           " << hsu.blocks.size() << " rigid (" << hsu.ridge_blocks_in_file << " in the ridge file";
   if (fixed) out << ", " << fixed << " fixed";
   if (hsu.loose_blocks_dropped)
     out << ", " << hsu.loose_blocks_dropped << " without a joint left out: blocks.loose_blocks";
   out << "), " << hsu.joints.size() << " freeze joints, " << sci(vol, 4) << " m^3 of ice (~" << sci(est, 3)
-      << " particles if all converted); conversion \"" << bridge::to_string(hsu.def.mode) << "\"\n";
+      << " particles if all converted); conversion \"" << st.conversion << "\"\n";
   out << "rigid step:       " << sci(r.rigid_dt, 4) << " s = " << r.steps_per_rigid_step
       << " DEM steps (stability limit " << sci(r.rigid_dt_limit, 4) << " s)\n";
   const auto& x = s.blocks.relax;
@@ -172,8 +172,7 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
       {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit, .relax = false});
   for (const auto& w : sim.warnings()) err << "warning: " << w << "\n";
   const sim::Built& b = sim.built();
-  const bonded::Engine& e = sim.engine();
-  const double dt = e.dt(), crit = e.critical_time_step();
+  const double dt = sim.dt(), crit = sim.critical_time_step();
   const sim::Schedule& sc = sim.schedule();
   const double psteps = static_cast<double>(b.particles) * sc.total_steps;
   const std::uint64_t rows = sc.total_steps / sc.output_every + 1;
@@ -187,7 +186,7 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   out << "bonds:            " << b.bonds << " (" << sci(b.particles ? 2.0 * b.bonds / b.particles : 0.0, 3)
       << " per particle)\n";
   {
-    const sim::CalibratedIce ci = sim::calibrate_ice(s);
+    const sim::CalibratedIce& ci = b.calibrated;
     for (const auto& w : ci.warnings) err << "warning: " << w << "\n";
     out << "ice:              " << ci.model << ": k_n = " << sci(ci.kn, 4) << " N/m, k_s = " << sci(ci.ks, 4)
         << " N/m; lattice E = " << sci(ci.youngs_modulus, 4) << " Pa, nu = " << sci(ci.poisson_ratio, 3)
@@ -227,7 +226,7 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
       << " particle-steps at ~" << sci(kParticleStepsPerSecond, 2) << "/s, one core)\n";
   out << "output:           " << (opt.output.empty() ? s.output : opt.output) << "\n";
   warn_past_limits(err, psteps / kParticleStepsPerSecond, file_bytes, opt.output.empty() ? s.output : opt.output);
-  e.check_time_step();  // InputError at /time/dt, after the figures that explain it
+  sim.check_time_step();  // InputError at /time/dt, after the figures that explain it
   out << "ok\n";
   return 0;
 }
@@ -248,7 +247,7 @@ void keep_last_good_and_close(const sim::Simulation& sim, sim::Recorders& rec, i
   }
   file.close();
   std::fprintf(progress, "hybridsim: series rows up to the last output before t = %g s%s kept in %s\n",
-               sim.engine().time(), kept.c_str(), out_path.c_str());
+               sim.time(), kept.c_str(), out_path.c_str());
 }
 
 /// A word of a shell command, quoted when it needs it.
@@ -275,7 +274,7 @@ std::string resume_command(const RunOptions& opt, const std::string& out_path, c
 int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const sim::Simulation& sim, double wall,
                    const std::string& out_path, const std::string& resume, std::FILE* progress) {
   const std::uint64_t steps = sim.schedule().total_steps;
-  const double t = sim.engine().time();
+  const double t = sim.time();
   std::fprintf(progress,
                "hybridsim: stopped by %s after step %llu of %llu (t = %s s of %g s, %.1f s wall). Series rows up "
                "to t = %s s%s are in %s (closed)%s; no /analysis was written.\n"
@@ -292,10 +291,10 @@ int report_stopped(int stop, std::uint64_t last, const scene::Scene& s, const si
 
 /// The relaxation's look outside after each rigid step: a progress line every 5 s of wall, and
 /// whether SIGINT/SIGTERM asks it to stop (under MPI agreed every kMpiPollSteps calls).
-std::function<bool(const bridge::RelaxProgress&)> relaxation_poll(const scene::Scene& s, const par::Comm& comm,
+std::function<bool(const sim::RelaxProgress&)> relaxation_poll(const scene::Scene& s, const par::Comm& comm,
                                                                   const StopSignals& signals, std::FILE* progress) {
   return [&s, &comm, &signals, progress, last_line = Clock::now(),
-          calls = std::uint64_t{0}](const bridge::RelaxProgress& p) mutable {
+          calls = std::uint64_t{0}](const sim::RelaxProgress& p) mutable {
     raise_test_signal("relax", ++calls, comm.rank());
     if (seconds_since(last_line) >= 5.0) {
       last_line = Clock::now();
@@ -320,100 +319,116 @@ std::function<bool(const bridge::RelaxProgress&)> relaxation_poll(const scene::S
 
 }  // namespace
 
-int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
-  const par::Comm& comm = opt.comm ? *opt.comm : par::serial();
-  // The first SIGINT/SIGTERM is recorded, not fatal, from here to the return: the relaxation polls
-  // it (stop, nothing written), the loop polls it (finish the step, checkpoint, close); one that
-  // arrives between the two stops the loop at its first poll (step 1, or 16 under MPI), and one
-  // after the last step lets the report finish, so a single signal never kills the process with
-  // its run file open (a second one does: the handler is one-shot).
-  StopSignals signals;
-  // 1. load: the scene file, --set overrides applied, validated
-  const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
-  print_warnings(s.warnings, progress);
-  print_warnings(sim::calibrate_ice(s).warnings, progress);
-  // --restart: the checkpoint and the rows before it are read before anything is created (the
-  // output may be the restarted file itself); the output defaults to that run file.
-  std::optional<Restart> restart;
-  if (!opt.restart.empty()) restart = read_restart(opt.restart, s, comm);
-  const std::string out_path =
-      !opt.output.empty() ? opt.output : restart ? io::strip_partial(restart->run_file) : s.output;
-  check_run_output(out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
-  const std::string ckpt_path = io::checkpoint_path(out_path);
-  const std::vector<std::string> changes = restart ? restart->changes : std::vector<std::string>{};
-  for (std::size_t k = restart ? restart->carried_changes : 0; k < changes.size(); ++k)
-    std::fprintf(progress, "hybridsim: restart changes %s\n", changes[k].c_str());
-  // 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share
-  const auto t_setup = Clock::now();
-  sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit};
-  // A restart takes the relaxed ridge from the checkpoint instead of relaxing again.
-  if (restart) build.restart_state = restart->all.empty() ? &restart->state : &restart->all.front();
-  std::optional<sim::Simulation> built;
-  {
-    // The relaxation before the freeze may take minutes: a progress line every few seconds, and
-    // SIGINT/SIGTERM stop it (nothing is written yet: exit 128 + signal). Every rank relaxes
-    // alike, so under MPI they agree on a stop every 16 rigid steps.
-    build.relax_progress = relaxation_poll(s, comm, signals, progress);
-    try {
-      built.emplace(sim::build_simulation(s, comm, build));
-    } catch (const sim::RelaxationStopped& e) {
-      const int sig = signals.received() ? signals.received() : SIGINT;
-      std::fprintf(progress,
-                   "hybridsim: stopped by %s during the relaxation before the freeze (t = %s s of relaxation, "
-                   "%.1f s wall); nothing was written (the run file is made after the relaxation) and there is no "
-                   "checkpoint: run it again to start over.\nhybridsim: exit code %d.\n",
-                   signal_name(sig), sci(e.time, 4).c_str(), seconds_since(t_setup), stopped_exit_code(sig));
-      return stopped_exit_code(sig);
-    }
-  }
-  sim::Simulation& sim = *built;
-  print_warnings(sim.warnings(), progress);
-  io::RunFile file(out_path, run_file_meta(s, comm, opt.fsync, changes));
-  sim::Recorders rec(sim, s, comm);
-  rec.declare(file);
-  const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);
+namespace {
 
-  // 3. loop: step, then the recorders (per-step sums; rows and snapshots when due), then the
-  // poll: a wall-clock flush when due, a graceful stop on SIGINT/SIGTERM
+/// What a run reads before it builds anything: the scene, its ice, a restart's checkpoint and
+/// where the output goes.
+struct RunInput {
+  scene::Scene s;
+  sim::CalibratedIce ice;           ///< calibrate_ice(s), once for the run (warnings, build, run file)
+  std::optional<Restart> restart;   ///< --restart: the checkpoint and the rows before it
+  std::string out_path, ckpt_path;  ///< the run file and its checkpoint
+  std::vector<std::string> changes; ///< Restart::changes (none without a restart)
+};
+
+/// 1. load: the scene file, --set overrides applied, validated; with --restart the checkpoint and
+/// the rows before it, read before anything is created (the output may be the restarted file
+/// itself; it defaults to that run file). The output path is checked here, before the long work.
+RunInput load_run(const RunOptions& opt, const par::Comm& comm, std::FILE* progress) {
+  RunInput in;
+  in.s = scene::load_scene_file(opt.scene_path, opt.overrides);
+  const scene::Scene& s = in.s;
+  print_warnings(s.warnings, progress);
+  in.ice = sim::calibrate_ice(s);
+  print_warnings(in.ice.warnings, progress);
+  if (!opt.restart.empty()) in.restart = read_restart(opt.restart, s, comm);
+  in.out_path = !opt.output.empty() ? opt.output : in.restart ? io::strip_partial(in.restart->run_file) : s.output;
+  check_run_output(in.out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
+  in.ckpt_path = io::checkpoint_path(in.out_path);
+  if (in.restart) in.changes = in.restart->changes;
+  for (std::size_t k = in.restart ? in.restart->carried_changes : 0; k < in.changes.size(); ++k)
+    std::fprintf(progress, "hybridsim: restart changes %s\n", in.changes[k].c_str());
+  return in;
+}
+
+/// 2. build: particles, walls, structure, blocks, schedule; each rank keeps its share. A restart
+/// takes the relaxed ridge from the checkpoint instead of relaxing again. The relaxation before
+/// the freeze may take minutes: a progress line every few seconds, and SIGINT/SIGTERM stop it
+/// (nothing is written yet): then no simulation, and `stopped` = 128 + signal. Every rank relaxes
+/// alike, so under MPI they agree on a stop every 16 rigid steps.
+std::optional<sim::Simulation> build_run(const RunOptions& opt, const RunInput& in, const par::Comm& comm,
+                                         const StopSignals& signals, Clock::time_point t_setup, std::FILE* progress,
+                                         int& stopped) {
+  sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit, .calibrated = &in.ice};
+  if (in.restart) build.restart_state = in.restart->all.empty() ? &in.restart->state : &in.restart->all.front();
+  build.relax_progress = relaxation_poll(in.s, comm, signals, progress);
+  std::optional<sim::Simulation> built;
+  try {
+    built.emplace(sim::build_simulation(in.s, comm, build));
+  } catch (const sim::RelaxationStopped& e) {
+    const int sig = signals.received() ? signals.received() : SIGINT;
+    std::fprintf(progress,
+                 "hybridsim: stopped by %s during the relaxation before the freeze (t = %s s of relaxation, "
+                 "%.1f s wall); nothing was written (the run file is made after the relaxation) and there is no "
+                 "checkpoint: run it again to start over.\nhybridsim: exit code %d.\n",
+                 signal_name(sig), sci(e.time, 4).c_str(), seconds_since(t_setup), stopped_exit_code(sig));
+    stopped = stopped_exit_code(sig);
+  }
+  return built;
+}
+
+/// How the loop ended.
+struct LoopEnd {
+  int stop = 0;             ///< the signal that stopped the run, 0 if none
+  std::uint64_t last = 0;   ///< the last step completed
+  std::uint64_t first = 0;  ///< the step this process started from (a restart's checkpoint step)
+  double wall = 0.0;        ///< s of the loop
+};
+
+/// 3. loop: step, then the recorders (per-step sums; rows and snapshots when due), then the
+/// poll: a wall-clock flush when due, a graceful stop on SIGINT/SIGTERM (a checkpoint, the rows
+/// of that step). Closes the file; after an instability the last good state is kept first.
+LoopEnd run_loop(const RunOptions& opt, RunInput& in, sim::Simulation& sim, sim::Recorders& rec, io::RunFile& file,
+                 const par::Comm& comm, const StopSignals& signals, std::FILE* progress) {
   const auto t0 = Clock::now();
   const std::uint64_t steps = sim.schedule().total_steps;
-  ProgressLine bar(progress, s.time.duration, steps);
-  int stop = 0;           // the signal that stopped the run, 0 if none
-  std::uint64_t last = 0;  // the last step completed
-  std::uint64_t first = 0;  // the step this process started from (a restart's checkpoint step)
+  ProgressLine bar(progress, in.s.time.duration, steps);
+  LoopEnd end;
   const std::uint64_t ckpt_every = sim.schedule().checkpoint_every;
   try {
     LoopPoll poll(comm, signals, opt.flush_interval);
-    if (restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
-      last = apply_restart(*restart, sim, rec, file, progress);
-      first = last;
-      bar.start_at(last);
+    if (in.restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
+      end.last = apply_restart(*in.restart, sim, rec, file, progress);
+      end.first = end.last;
+      bar.start_at(end.last);
       std::fprintf(progress, "hybridsim: restarted from %s at step %llu (t = %s s)\n",
-                   restart->checkpoint_file.c_str(), static_cast<unsigned long long>(last),
-                   sci(sim.engine().time(), 6).c_str());
-      restart.reset();
+                   in.restart->checkpoint_file.c_str(), static_cast<unsigned long long>(end.last),
+                   sci(sim.time(), 6).c_str());
+      in.restart.reset();
     } else {
       rec.write_initial(sim, file);  // row 0: the initial state
     }
     file.flush();
-    for (std::uint64_t k = last + 1; k <= steps; ++k) {
+    for (std::uint64_t k = end.last + 1; k <= steps; ++k) {
       sim.step();                    // particles one DEM step; blocks every rigid step
       rec.after_step(k, sim, file);  // sums and peaks; rows and snapshots when due
-      bar.update(k, sim.engine());   // progress line
-      last = k;
+      bar.update(k, sim);            // progress line
+      end.last = k;
       const PollResult p = poll.after_step(k, steps);
       if (p.stop) {  // finish here: a checkpoint, the rows (and snapshot) of this step, then close below
-        stop = p.stop;
-        if (k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm, changes);  // before write_stop's extra rows
+        end.stop = p.stop;
+        if (k < steps) write_checkpoint(in.ckpt_path, in.s, sim, rec, file, comm, in.changes);  // before write_stop's extra rows
         rec.write_stop(k, sim, file);
         break;
       }
-      if (ckpt_every && k % ckpt_every == 0 && k < steps) write_checkpoint(ckpt_path, s, sim, rec, file, comm, changes);
-      else if (p.flush) file.flush();
+      if (ckpt_every && k % ckpt_every == 0 && k < steps)
+        write_checkpoint(in.ckpt_path, in.s, sim, rec, file, comm, in.changes);
+      else if (p.flush)
+        file.flush();
     }
   } catch (const SimulationError&) {
     bar.end();
-    keep_last_good_and_close(sim, rec, file, out_path, progress);
+    keep_last_good_and_close(sim, rec, file, in.out_path, progress);
     throw;
   } catch (const std::exception& ex) {
     if (!comm.parallel()) throw;
@@ -425,15 +440,43 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   }
   bar.end();
   file.close();
-  const double wall = seconds_since(t0);
-  if (stop) return report_stopped(stop, last, s, sim, wall, out_path, resume_command(opt, out_path, comm), progress);
+  end.wall = seconds_since(t0);
+  return end;
+}
+
+}  // namespace
+
+int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
+  const par::Comm& comm = opt.comm ? *opt.comm : par::serial();
+  // The first SIGINT/SIGTERM is recorded, not fatal, from here to the return: the relaxation polls
+  // it (stop, nothing written), the loop polls it (finish the step, checkpoint, close); one that
+  // arrives between the two stops the loop at its first poll (step 1, or 16 under MPI), and one
+  // after the last step lets the report finish, so a single signal never kills the process with
+  // its run file open (a second one does: the handler is one-shot).
+  StopSignals signals;
+  RunInput in = load_run(opt, comm, progress);  // 1. load
+  const scene::Scene& s = in.s;
+  const auto t_setup = Clock::now();
+  int stopped = 0;
+  std::optional<sim::Simulation> built = build_run(opt, in, comm, signals, t_setup, progress, stopped);  // 2. build
+  if (!built) return stopped;
+  sim::Simulation& sim = *built;
+  print_warnings(sim.warnings(), progress);
+  io::RunFile file(in.out_path, run_file_meta(s, sim.built().calibrated, comm, opt.fsync, in.changes));
+  sim::Recorders rec(sim, s, comm);
+  rec.declare(file);
+  const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);
+  const LoopEnd end = run_loop(opt, in, sim, rec, file, comm, signals, progress);  // 3. loop
+  if (end.stop)
+    return report_stopped(end.stop, end.last, s, sim, end.wall, in.out_path, resume_command(opt, in.out_path, comm),
+                          progress);
 
   // 4. report: pieces, ISO beside the run, the hybrid outcome -> /analysis and the summary
   const sim::RunFigures fig = rec.figures();
   const sim::RunReport an = sim::analyse_run(sim, s, fig, comm);
   comm.barrier();  // every rank's close has completed before rank 0 reopens the file
-  if (comm.rank() == 0) sim::write_analysis(out_path, an);
-  print_summary(out, s, sim, fig, an, RunEnd{start, wall, out_path, first}, comm);
+  if (comm.rank() == 0) sim::write_analysis(in.out_path, an);
+  print_summary(out, s, sim, fig, an, RunEnd{start, end.wall, in.out_path, end.first}, comm);
   if (signals.received())
     std::fprintf(progress, "hybridsim: %s received after the last step: the run was complete and its report is written\n",
                  signal_name(signals.received()));

@@ -1,7 +1,6 @@
 #include "app/run_summary.h"
 
 #include "app/text.h"
-#include "bridge/conversion_criteria.h"
 #include "parallel/comm.h"
 
 #include <algorithm>
@@ -12,28 +11,27 @@ namespace hs::app {
 
 RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Simulation& sim, double setup_s,
                       const par::Comm& comm) {
-  const auto& e = sim.engine();
-  const RunCounts n{static_cast<long long>(e.global_particle_count()), static_cast<long long>(e.global_bond_count())};
+  const sim::RunStats st = sim.run_stats();
+  const RunCounts n{st.particles, st.bonds};
   std::fprintf(progress,
                "hybridsim: %s: %lld particles, %lld bonds, %zu walls; dt = %.4g s, %llu steps to t = %g s "
                "(setup %.1f s)\n",
-               s.name.c_str(), n.particles, n.bonds, s.walls.size(), e.dt(),
+               s.name.c_str(), n.particles, n.bonds, s.walls.size(), st.dt,
                static_cast<unsigned long long>(sim.schedule().total_steps), s.time.duration, setup_s);
-  if (sim.has_blocks()) {
-    const auto& r = sim.hybrid().report();
-    const auto& b = sim.blocks();
+  if (st.has_blocks) {
+    const sim::BlockReport& r = st.blocks;
     std::fprintf(progress,
                  "hybridsim: %zu rigid blocks (%zu freeze joints), conversion \"%s\"; rigid step %.4g s = %llu DEM "
                  "steps (stability limit %.4g s)\n",
-                 r.blocks_initial, b.joints.size(), bridge::to_string(b.def.mode), r.rigid_dt,
+                 r.blocks_initial, st.freeze_joints, st.conversion, r.rigid_dt,
                  static_cast<unsigned long long>(r.steps_per_rigid_step), r.rigid_dt_limit);
     if (r.blocks_moved_clear)
       std::fprintf(progress, "hybridsim: %zu blocks started overlapping the particles and were moved clear (at most %.3g m)\n",
                    r.blocks_moved_clear, r.max_clearing_shift);
-    if (!b.ice_joints.empty())
+    if (st.ice_joints)
       std::fprintf(progress, "hybridsim: %zu ridge joints to the ice sheet became %llu block-particle freeze bonds\n",
-                   b.ice_joints.size(), static_cast<unsigned long long>(r.ice_bonds_created));
-    const auto& x = sim.hybrid().relax_report();
+                   st.ice_joints, static_cast<unsigned long long>(r.ice_bonds_created));
+    const sim::RelaxReport& x = st.relax;
     if (x.ran)
       std::fprintf(progress,
                    "hybridsim: relaxation before the freeze: %.4g s (%llu steps), %s; at its end fastest block %.3g "
@@ -64,7 +62,7 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
                    static_cast<unsigned long long>(x.freeze_bonds_overloaded));
   }
   if (comm.parallel()) {
-    const auto& g = e.decomposition().dims();
+    const auto& g = st.boxes;
     std::fprintf(progress, "hybridsim: %d MPI ranks, boxes %d x %d x %d, load balance every %llu steps by %s\n",
                  comm.size(), g[0], g[1], g[2], static_cast<unsigned long long>(s.parallel.balance_interval),
                  s.parallel.cost.c_str());
@@ -75,29 +73,27 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
 
 namespace {
 
-void print_blocks(std::ostream& out, const sim::Simulation& sim, const sim::RunReport& an) {
-  const auto& h = sim.hybrid();
-  const auto& r = h.report();
-  out << "  blocks (" << bridge::to_string(sim.blocks().def.mode) << "): " << r.blocks_initial << " at the start, "
+void print_blocks(std::ostream& out, const sim::RunStats& st, const sim::RunReport& an) {
+  const sim::BlockReport& r = st.blocks;
+  out << "  blocks (" << st.conversion << "): " << r.blocks_initial << " at the start, "
       << r.blocks_now << " rigid at the end; " << r.conversions << " conversions made " << r.particles_created
       << " particles (" << r.bonds_created << " bonds, " << r.sites_dropped << " overlapping sites dropped); peak "
       << r.peak_particles << " particles; " << r.rigid_steps << " rigid steps of " << sci(r.rigid_dt, 4)
-      << " s; " << h.world()->broken_joint_count() << " freeze joints broken\n";
-  if (sim.blocks().def.world.far_sleep.enabled) {
-    const rigid::RigidWorld& w = *h.world();
-    out << "  far sleep: " << w.awake_count() << " blocks awake at the end; " << w.sleepers_woken_by_solve()
-        << " sleeping blocks woken by a change of their load (" << w.solves_repeated()
+      << " s; " << st.freeze_joints_broken << " freeze joints broken\n";
+  if (st.far_sleep) {
+    out << "  far sleep: " << st.awake_blocks << " blocks awake at the end; " << st.sleepers_woken_by_solve
+        << " sleeping blocks woken by a change of their load (" << st.solves_repeated
         << " sub-step solves done again; counts since this process started)\n";
   }
   out << "  block-particle freeze bonds: " << r.ice_bonds_created << " at the start, " << r.joints_to_bonds
       << " made from joints of converted blocks, " << r.block_bonds_handed_over
       << " handed over to particle bonds at conversions (" << r.block_bonds_unmatched
-      << " released with no new particle within 1.5 D), " << h.block_particle_bonds_broken() << " broken\n";
+      << " released with no new particle within 1.5 D), " << st.block_particle_bonds_broken << " broken\n";
   out << "  conversions governed by: freeze bonds " << r.conversions_freeze << ", flexure " << r.conversions_flexure
-      << ", crushing " << r.conversions_by(bridge::kCrushingCriterion) << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
+      << ", crushing " << st.conversions_crushing << "; " << r.conversions_refused << " refused by the converter (thinner than D or fully overlapped; left rigid); "
       << "largest utilisation seen " << sci(r.max_utilisation, 3) << "; conversion KE change "
       << sci(r.kinetic_energy_change, 3) << " J\n";
-  const auto& x = h.relax_report();
+  const sim::RelaxReport& x = st.relax;
   if (x.ran)
     out << "  relaxation before the freeze: " << sci(x.time, 4) << " s, " << (x.at_rest() ? "at rest" : "NOT at rest")
         << " (fastest block " << sci(x.max_block_speed, 3) << " m/s, particle " << sci(x.max_particle_speed, 3)
@@ -152,21 +148,21 @@ void print_pieces_and_iso(std::ostream& out, const sim::RunReport& an, const sim
 }
 
 /// MPI figures (collective): the slowest rank sets the pace; comm time is exchanges + reductions.
-void print_parallel(std::ostream& out, const sim::Simulation& sim, double wall, const par::Comm& comm) {
-  const auto& e = sim.engine();
-  double pf[3] = {e.parallel_stats().force_seconds, e.parallel_stats().comm_seconds, 0.0};
+void print_parallel(std::ostream& out, const sim::Simulation& sim, const sim::RunStats& st, double wall,
+                    const par::Comm& comm) {
+  double pf[3] = {st.force_seconds, st.comm_seconds, 0.0};
   const double force_time_sum = comm.sum(pf[0]);
   comm.max(pf, 2);
-  const std::int64_t migrated = comm.sum(static_cast<std::int64_t>(e.parallel_stats().migrated));
+  const std::int64_t migrated = comm.sum(static_cast<std::int64_t>(st.migrated));
   comm.barrier();
   if (!comm.parallel()) return;
   out << "  MPI: " << comm.size() << " ranks; force time max/mean " << sci(pf[0] / std::max(force_time_sum / comm.size(), 1e-12), 3)
       << " (load imbalance), max comm time " << sci(pf[1], 3) << " s (" << sci(100.0 * pf[1] / std::max(wall, 1e-9), 3)
-      << " % of wall), " << e.parallel_stats().exchanges << " exchanges, " << migrated << " migrations, "
-      << e.parallel_stats().balances << " load balances\n";
+      << " % of wall), " << st.exchanges << " exchanges, " << migrated << " migrations, "
+      << st.balances << " load balances\n";
   const char* axis = "xyz";  // where the load balance put the cuts (they follow the busy region)
   for (int a = 0; a < 3; ++a) {
-    const auto& c = e.decomposition().cuts(a);
+    const auto& c = st.cuts[a];
     if (c.size() <= 2) continue;
     out << "  cuts across " << axis[a] << " at";
     for (std::size_t k = 1; k + 1 < c.size(); ++k) out << " " << sci(c[k], 4);
@@ -179,19 +175,18 @@ void print_parallel(std::ostream& out, const sim::Simulation& sim, double wall, 
 
 void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulation& sim, const sim::RunFigures& f,
                    const sim::RunReport& an, const RunEnd& end, const par::Comm& comm) {
+  const sim::RunStats st = sim.run_stats();  // collective (global counts)
   std::ostringstream mpi;  // collective: every rank reduces before rank 0 prints
-  print_parallel(mpi, sim, end.wall_seconds, comm);
-  const auto& e = sim.engine();
-  const auto& st = e.stats();
+  print_parallel(mpi, sim, st, end.wall_seconds, comm);
   const double wall = std::max(end.wall_seconds, 1e-9);
   // The rates are this process's: after a restart, the steps since its checkpoint.
-  const std::uint64_t ran = e.step_count() - std::min<std::uint64_t>(end.first_step, e.step_count());
+  const std::uint64_t ran = st.step - std::min<std::uint64_t>(end.first_step, st.step);
   const double run = static_cast<double>(ran);
-  out << "hybridsim: " << s.name << " finished: " << e.step_count() << " steps to t = " << sci(e.time(), 6) << " s";
+  out << "hybridsim: " << s.name << " finished: " << st.step << " steps to t = " << sci(st.time, 6) << " s";
   if (end.first_step > 0) out << "; restarted at step " << end.first_step << ", " << ran << " steps";
   out << " in " << sci(end.wall_seconds, 4) << " s wall (" << sci(run / wall, 4) << " steps/s, "
       << sci(static_cast<double>(end.start.particles) * run / wall, 3) << " particle-steps/s)\n";
-  out << "  particles " << end.start.particles << " at the start, " << e.global_particle_count()
+  out << "  particles " << end.start.particles << " at the start, " << st.particles
       << " at the end; bonds " << end.start.bonds << ", broken " << st.bonds_broken << " ("
       << st.bonds_broken_tension << " tension, " << st.bonds_broken_shear << " shear"
       << (st.bonds_broken_compression || std::isfinite(s.bonds.compressive_strength_ratio)
@@ -216,7 +211,7 @@ void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulati
           << sci(f.max_pile_mean_time, 4) << " s";
     out << "\n";
   }
-  if (sim.has_blocks()) print_blocks(out, sim, an);
+  if (st.has_blocks) print_blocks(out, st, an);
   print_pieces_and_iso(out, an, f);
   out << mpi.str();
   out << "  output: " << end.output << " (" << f.rows << " series rows, " << f.snapshots << " snapshots)\n";

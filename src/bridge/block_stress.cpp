@@ -280,15 +280,7 @@ FlexureEstimate flexure_estimate(const BlockBox& block, std::span<const PointLoa
   return best;
 }
 
-// ---- combined estimate, conversion rule ----
-
-BlockStress block_stress(const FreezeBondEstimate& freeze, const FlexureEstimate& flexure) {
-  BlockStress s;
-  s.u_freeze = freeze.utilisation;
-  s.u_flex = flexure.utilisation;
-  if (s.u_freeze > 0.0 || s.u_flex > 0.0) s.governing = s.u_freeze >= s.u_flex ? StressMode::FreezeBond : StressMode::Flexure;
-  return s;
-}
+// ---- conversion rule ----
 
 bool converts(double utilisation, double safety_factor) {
   if (!positive_finite(safety_factor))

@@ -125,23 +125,11 @@ FlexureEstimate flexure_estimate(const BlockBox& block, std::span<const PointLoa
                                  const FlexureOptions& options = {});
 
 // ---------------------------------------------------------------------------------------------
-// Combined estimate and the conversion rule
-
-enum class StressMode { None, FreezeBond, Flexure };
-
-struct BlockStress {
-  double u_freeze = 0.0;
-  double u_flex = 0.0;
-  StressMode governing = StressMode::None;  ///< the larger (tie: FreezeBond); None when both are 0
-  double utilisation() const { return u_freeze > u_flex ? u_freeze : u_flex; }
-};
-
-BlockStress block_stress(const FreezeBondEstimate& freeze, const FlexureEstimate& flexure);
+// The conversion rule (the criteria that combine the estimates: conversion_criteria.h)
 
 /// True when u * safety_factor >= 1: a safety factor above 1 converts earlier (at u = 1/SF), below 1
 /// later. Throws hs::InputError unless safety_factor is positive and finite.
 bool converts(double utilisation, double safety_factor);
-inline bool converts(const BlockStress& s, double safety_factor) { return converts(s.utilisation(), safety_factor); }
 
 // ---------------------------------------------------------------------------------------------
 // Conversion region

@@ -15,7 +15,7 @@ namespace hs::sim {
 namespace {
 
 /// The hybrid system's settings: rigid world, block material, conversion policy.
-bridge::HybridDef hybrid_def(const scene::Scene& s) {
+bridge::HybridDef hybrid_def(const scene::Scene& s, const CalibratedIce& ci) {
   bridge::HybridDef d;
   const auto& b = s.blocks;
   d.mode = bridge::conversion_mode_from_string(b.conversion);
@@ -39,7 +39,7 @@ bridge::HybridDef hybrid_def(const scene::Scene& s) {
   w.solver_iterations = b.solver_iterations;
   w.fixed_friction_directions = b.fixed_friction_directions;
   w.friction_sees_torque = b.friction_sees_torque;
-  const CalibratedIce ci = calibrate_ice(s);  // freeze strengths may be a fraction of the lattice bond's
+  // (ci: freeze strengths may be a fraction of the lattice bond's)
   w.freeze_bond_strength = ci.freeze_tensile_strength;
   w.freeze_bond_shear_strength = ci.freeze_shear_strength;
   d.safety_factor = b.safety_factor;
@@ -242,8 +242,13 @@ std::optional<RidgeKeel> scene_ridge_keel(const scene::Scene& s) {
 }
 
 BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius) {
+  return block_setup(s, calibrate_ice(s), structure, structure_radius);
+}
+
+BlockSetup block_setup(const scene::Scene& s, const CalibratedIce& ice, const mesh::TriMesh* structure,
+                       double structure_radius) {
   BlockSetup out;
-  out.def = hybrid_def(s);
+  out.def = hybrid_def(s, ice);
   if (!s.has_blocks) return out;
   out.def.region = conversion_region(s.blocks.region, s.has_structure ? structure_radius : 0.0);
   if (s.has_structure && structure) {

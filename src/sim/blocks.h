@@ -5,6 +5,7 @@
 #include "bridge/hybrid.h"
 #include "mesh/tri_mesh.h"
 #include "scene/scene.h"
+#include "sim/calibrated_ice.h"
 #include "sim/iso_inputs.h"
 
 #include <optional>
@@ -28,7 +29,11 @@ struct BlockSetup {
 /// Reads the scene's blocks (InputError at /blocks/ridge_file for a missing or bad file).
 /// `structure` is the structure's mesh as built for the engine (nullptr without a structure),
 /// `structure_radius` its widest radius (the default conversion region). A scene without a
-/// "blocks" section gives an empty block list (no rigid world).
+/// "blocks" section gives an empty block list (no rigid world). `ice`: calibrate_ice(s), computed
+/// once for the run (the freeze strengths and the conversion's flexural and crushing limits come
+/// from it); without it, computed here.
+BlockSetup block_setup(const scene::Scene& s, const CalibratedIce& ice, const mesh::TriMesh* structure,
+                       double structure_radius);
 BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius);
 
 /// Whether a block (centre, half extents) starting there would reach into a parametric pier

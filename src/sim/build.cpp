@@ -22,7 +22,9 @@
 
 namespace hs::sim {
 
-bonded::EngineDef engine_def(const scene::Scene& s) {
+bonded::EngineDef engine_def(const scene::Scene& s) { return engine_def(s, calibrate_ice(s)); }
+
+bonded::EngineDef engine_def(const scene::Scene& s, const CalibratedIce& ci) {
   using namespace bonded;
   EngineDef d;
   const auto& m = s.material;
@@ -35,7 +37,6 @@ bonded::EngineDef engine_def(const scene::Scene& s) {
   d.contact_model = m.contact_model;
   // Springs and bond strengths of the scene's stiffness model (calibrated_ice.h); paper_eq1 gives
   // k_n = k_s = effective_stiffness() and the bonds' strengths exactly as before the model existed.
-  const CalibratedIce ci = calibrate_ice(s);
   const double k = ci.kn, ks = ci.ks;
   d.contact.kn = d.contact.kt = k;
   d.contact.zeta_n = d.contact.zeta_t = damping_ratio_from_restitution(m.restitution);
@@ -287,11 +288,13 @@ std::string check_structure_overlap(const Built& b, const scene::Scene& s) {
                                               how.substr(1));
 }
 
-Built build_engine(const scene::Scene& s, bool check_dt) {
+Built build_engine(const scene::Scene& s, bool check_dt) { return build_engine(s, calibrate_ice(s), check_dt); }
+
+Built build_engine(const scene::Scene& s, const CalibratedIce& ice, bool check_dt) {
   using namespace bonded;
   Built out;
-  out.engine = std::make_unique<Engine>(engine_def(s));
-  out.calibrated = calibrate_ice(s);
+  out.engine = std::make_unique<Engine>(engine_def(s, ice));
+  out.calibrated = ice;
   Engine& e = *out.engine;
   const double D = s.material.particle_diameter;
   const double c = hcp_layer_spacing(D);

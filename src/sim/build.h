@@ -16,7 +16,9 @@
 
 namespace hs::sim {
 
-/// Engine settings of the scene (contact and bond laws, water, gravity, limits, dt).
+/// Engine settings of the scene (contact and bond laws, water, gravity, limits, dt); the springs
+/// and bond strengths from `ice` (calibrate_ice(s), computed here when not given).
+bonded::EngineDef engine_def(const scene::Scene& s, const CalibratedIce& ice);
 bonded::EngineDef engine_def(const scene::Scene& s);
 
 struct IceLayout {
@@ -121,7 +123,10 @@ StructureOverlap structure_overlap(const Built& b, const scene::Scene& s);
 std::string check_structure_overlap(const Built& b, const scene::Scene& s);
 
 /// Builds the engine: bonded HCP ice floating at equilibrium, walls, the structure. With check_dt the time
-/// step is checked against the critical step (InputError at "/time/dt" if too large).
+/// step is checked against the critical step (InputError at "/time/dt" if too large). `ice`:
+/// calibrate_ice(s), computed once for the run (Built::calibrated keeps it); computed here when
+/// not given.
+Built build_engine(const scene::Scene& s, const CalibratedIce& ice, bool check_dt = true);
 Built build_engine(const scene::Scene& s, bool check_dt = true);
 
 }  // namespace hs::sim

@@ -4,6 +4,7 @@
 #include "parallel/comm.h"
 
 #include <algorithm>
+#include <optional>
 #include <sstream>
 #include <cmath>
 
@@ -67,12 +68,16 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
   Simulation sim;
   MemoryEstimate est = memory_estimate(s);
   if (!opt.ignore_memory_limit) check_memory(s, est, available_memory_bytes(), comm.size());
-  sim.built_ = build_engine(s, opt.check_dt);
+  // The scene's ice, once for the run: the engine's springs and bonds, the blocks' freeze and
+  // conversion limits (Built::calibrated keeps it for the report and the run file).
+  std::optional<CalibratedIce> own;
+  const CalibratedIce& ice = opt.calibrated ? *opt.calibrated : own.emplace(calibrate_ice(s));
+  sim.built_ = build_engine(s, ice, opt.check_dt);
   // InputError when the ice starts inside the structure; a warning for shallow overlaps
   const std::string overlap = check_structure_overlap(sim.built_, s);
   bonded::Engine& e = *sim.built_.engine;
   const mesh::TriMesh* structure = sim.has_structure() ? &sim.built_.structure_mesh : nullptr;
-  sim.blocks_ = block_setup(s, structure, sim.built_.structure_radius);
+  sim.blocks_ = block_setup(s, sim.built_.calibrated, structure, sim.built_.structure_radius);
   if (!opt.ignore_memory_limit && !sim.blocks_.blocks.empty()) {  // before the rigid world and any conversion
     add_blocks(est, sim.blocks_, s.material.particle_diameter, s.walls.size());
     check_memory(s, est, available_memory_bytes(), comm.size());

@@ -13,6 +13,7 @@
 #include "scene/scene.h"
 #include "sim/blocks.h"
 #include "sim/build.h"
+#include "sim/run_stats.h"
 
 #include <cstdint>
 #include <memory>
@@ -23,11 +24,20 @@
 namespace hs {
 class StateArchive;
 }
+namespace hs::io {
+struct CheckpointMeta;
+class RunFile;
+}
 namespace hs::par {
 class Comm;
 }
 
 namespace hs::sim {
+
+class Recorders;
+
+/// What the relaxation before the freeze reports after each rigid step (BuildOptions::relax_progress).
+using RelaxProgress = bridge::RelaxProgress;
 
 /// Steps of a run and the steps between its outputs.
 struct Schedule {
@@ -58,6 +68,9 @@ struct BuildOptions {
   /// Restart: the checkpoint's state (one rank's), whose relaxed rigid world replaces the
   /// relaxation (HybridSystem::restore_relaxation).
   const StateArchive* restart_state = nullptr;
+  /// The scene's calibrate_ice when the caller has computed it already (once per run); computed
+  /// by build_simulation when null. Kept as Built::calibrated.
+  const CalibratedIce* calibrated = nullptr;
   /// Called every rigid step of the relaxation (progress lines); true stops it: build_simulation
   /// then throws RelaxationStopped.
   bridge::RelaxProgressFn relax_progress{};
@@ -94,6 +107,38 @@ class Simulation {
   /// Total load on the structure (particles + blocks) into `out` (its vectors are reused:
   /// called every step); requires has_structure().
   void structure_load(StructureLoad& out) const;
+
+  // ---- figures for the command's lines (run_stats.cpp) ----
+  std::uint64_t step_count() const { return engine().step_count(); }  ///< steps completed
+  double time() const { return engine().time(); }                     ///< s
+  double dt() const { return engine().dt(); }                         ///< s, the DEM step
+  /// The stable DEM step of the stiffest spring, s; check_time_step throws hs::InputError at
+  /// /time/dt when dt exceeds it.
+  double critical_time_step() const { return engine().critical_time_step(); }
+  void check_time_step() const { engine().check_time_step(); }
+  /// The ranks the particles are spread over.
+  const par::Comm& comm() const { return engine().comm(); }
+  /// This rank's figures for a progress line (no communication).
+  Progress progress() const;
+  /// The figures of the run so far (particles, bonds, blocks, relaxation, MPI). Collective under
+  /// MPI: the particle and bond counts are summed over the ranks.
+  RunStats run_stats() const;
+
+  // ---- checkpoints (simulation_checkpoint.cpp; docs/output.md, "Checkpoints") ----
+  /// Writes the checkpoint of the state after the current step to `path`: every part's state
+  /// (engine, hybrid system with its rigid world, recorders). Collective under MPI: rank 0
+  /// gathers every rank's state and writes the file. `identity` carries what ties it to the
+  /// scene (scene_hash, scene_text, restart_changes); the step, time, ranks, series rows,
+  /// snapshots, version and run file are filled in here. Flushes `file` first, so that it holds
+  /// every row the checkpoint counts.
+  void save_checkpoint(const std::string& path, const io::CheckpointMeta& identity, const Recorders& rec,
+                       io::RunFile& file, const par::Comm& comm) const;
+  /// Restores the state this rank saved (same rank count: the continuation is bit-identical).
+  /// Returns the saved rigid contact points that found no contact manifold.
+  std::size_t load_checkpoint(const StateArchive& state, Recorders& rec);
+  /// Restores the union of every saved rank's state, spread over this run's ranks (another rank
+  /// count; collective). Returns as above.
+  std::size_t load_checkpoint(const std::vector<StateArchive>& all, Recorders& rec);
 
  private:
   friend Simulation build_simulation(const scene::Scene&, const par::Comm&, const BuildOptions&);

@@ -317,21 +317,11 @@ TEST(BlockStress, FreezeBondUtilisation) {
 // ---- combined estimate and the rule ----
 
 TEST(BlockStress, ConversionRuleAndSafetyFactor) {
-  FreezeBondEstimate f;
-  f.utilisation = 0.4;
-  FlexureEstimate b;
-  b.utilisation = 0.55;
-  const BlockStress s = block_stress(f, b);
-  EXPECT_EQ(s.governing, StressMode::Flexure);
-  EXPECT_EQ(s.utilisation(), 0.55);
-  EXPECT_FALSE(converts(s, 1.0));
-  EXPECT_FALSE(converts(s, 1.8));   // 0.99
-  EXPECT_TRUE(converts(s, 2.0));    // 1.1: SF > 1 converts earlier
-  EXPECT_TRUE(converts(1.0, 1.0));  // at the limit
-  EXPECT_FALSE(converts(1.2, 0.8)); // 0.96: SF < 1 converts later
-  EXPECT_EQ(block_stress({}, {}).governing, StressMode::None);
-  f.utilisation = 0.55;
-  EXPECT_EQ(block_stress(f, b).governing, StressMode::FreezeBond);
+  EXPECT_FALSE(converts(0.55, 1.0));
+  EXPECT_FALSE(converts(0.55, 1.8));  // 0.99
+  EXPECT_TRUE(converts(0.55, 2.0));   // 1.1: SF > 1 converts earlier
+  EXPECT_TRUE(converts(1.0, 1.0));    // at the limit
+  EXPECT_FALSE(converts(1.2, 0.8));   // 0.96: SF < 1 converts later
   EXPECT_THROW(converts(1.0, 0.0), InputError);
   EXPECT_THROW(converts(1.0, NAN), InputError);
 }
