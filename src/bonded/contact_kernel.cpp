@@ -150,6 +150,24 @@ inline void store_columns(const __m256d rows[8], double* X, double* Y, double* Z
 }
 #endif
 
+// contact_lane for a kernel lane: a lane with smeff = 0 (two immovable particles, or an idle
+// lane) gets no force and keeps its spring.
+template <class Law>
+[[gnu::always_inline]] inline void lane_or_idle(const Law& law, double delta, double rstar, double smeff, double nx,
+                                                double ny, double nz, double vn, double vtx, double vty, double vtz,
+                                                double dt, double& xi_x, double& xi_y, double& xi_z, double& fx,
+                                                double& fy, double& fz) {
+  const bool act = smeff != 0.0;
+  double xix = xi_x, xiy = xi_y, xiz = xi_z;
+  contact_lane(law, delta, rstar, smeff, nx, ny, nz, vn, vtx, vty, vtz, dt, xix, xiy, xiz, fx, fy, fz);
+  fx = act ? fx : 0.0;
+  fy = act ? fy : 0.0;
+  fz = act ? fz : 0.0;
+  xi_x = act ? xix : xi_x;
+  xi_y = act ? xiy : xi_y;
+  xi_z = act ? xiz : xi_z;
+}
+
 // The law for the block's lanes (contact_lane.h); a lane with smeff = 0 (two immovable particles,
 // or an idle lane) gets no force and keeps its spring.
 template <class Law>
@@ -173,15 +191,9 @@ void block_law(Block& b, int m, const Law& law, double dt) {
     const double vn = vx * nx + vy * ny + vz * nz;
     const double vtx = vx - vn * nx, vty = vy - vn * ny, vtz = vz - vn * nz;
     const double rstar = b.ri[k] * b.rj[k] / rs;
-    const bool act = b.smeff[k] != 0.0;
-    double fx, fy, fz, xix = b.xix[k], xiy = b.xiy[k], xiz = b.xiz[k];
-    contact_lane(law, delta, rstar, b.smeff[k], nx, ny, nz, vn, vtx, vty, vtz, dt, xix, xiy, xiz, fx, fy, fz);
-    fx = act ? fx : 0.0;
-    fy = act ? fy : 0.0;
-    fz = act ? fz : 0.0;
-    b.xix[k] = act ? xix : b.xix[k];
-    b.xiy[k] = act ? xiy : b.xiy[k];
-    b.xiz[k] = act ? xiz : b.xiz[k];
+    double fx, fy, fz;
+    lane_or_idle(law, delta, rstar, b.smeff[k], nx, ny, nz, vn, vtx, vty, vtz, dt, b.xix[k], b.xiy[k], b.xiz[k], fx, fy,
+                 fz);
     b.fx[k] = fx;
     b.fy[k] = fy;
     b.fz[k] = fz;
@@ -223,16 +235,9 @@ void wall_block_law(WallBlock& b, int m, const Law& law, const Vec3& n, const Ve
     const double vz = b.vz[k] + (b.wx[k] * ay - b.wy[k] * ax) - uz;
     const double vn = vx * nx + vy * ny + vz * nz;
     const double vtx = vx - vn * nx, vty = vy - vn * ny, vtz = vz - vn * nz;
-    const double smeff = std::sqrt(b.m[k]);
-    const bool act = smeff != 0.0;
-    double fx, fy, fz, xix = b.xix[k], xiy = b.xiy[k], xiz = b.xiz[k];
-    contact_lane(law, delta, b.r[k], smeff, nx, ny, nz, vn, vtx, vty, vtz, dt, xix, xiy, xiz, fx, fy, fz);
-    fx = act ? fx : 0.0;
-    fy = act ? fy : 0.0;
-    fz = act ? fz : 0.0;
-    b.xix[k] = act ? xix : b.xix[k];
-    b.xiy[k] = act ? xiy : b.xiy[k];
-    b.xiz[k] = act ? xiz : b.xiz[k];
+    double fx, fy, fz;
+    lane_or_idle(law, delta, b.r[k], std::sqrt(b.m[k]), nx, ny, nz, vn, vtx, vty, vtz, dt, b.xix[k], b.xiy[k], b.xiz[k],
+                 fx, fy, fz);
     b.fx[k] = fx;
     b.fy[k] = fy;
     b.fz[k] = fz;
