@@ -356,7 +356,7 @@ struct HybridTiming {
 /// Warm-up, untimed: the steps up to the second rigid step. The world's first sub-step does the
 /// set-up's remaining work once (the broadphase's first pass over every pair of 29,000 blocks,
 /// every block put to sleep): 350 ms on the paper-size ridge, then 40 ms, then ~2 ms per rigid
-/// step; timed, it was 200 steps' rigid share by itself (0.21 against 0.08 over 1,000 steps).
+/// step; timed with the rest, it would dominate a short run's rigid share (docs/results/bench_hybrid.md).
 /// Reported as warmup_rigid_ms. Then `steps` timed steps, the awake and moving blocks sampled at
 /// every rigid step.
 HybridTiming time_hybrid(sim::Simulation& sim, const par::Comm& comm, std::uint64_t steps) {
