@@ -197,8 +197,8 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
       out << "; in compression " << sci(s.bonds.compressive_strength_ratio * ci.bond_tensile_strength, 4)
           << " Pa = bonds.compressive_strength_ratio " << s.bonds.compressive_strength_ratio << " x";
     if (s.bonds.strength_spread > 0)
-      out << "; each lattice bond's x its own factor, lognormal of mean 1 and sd " << s.bonds.strength_spread
-          << ", seed " << s.seed;
+      out << "; each lattice bond's strengths x a factor of its own, lognormal of mean 1 and sd "
+          << s.bonds.strength_spread << ", seed " << s.seed;
     out << ")\n";
   }
   out << "walls:            " << s.walls.size() << "\n";
