@@ -362,6 +362,7 @@ std::optional<sim::Simulation> build_run(const RunOptions& opt, const RunInput& 
   sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit, .calibrated = &in.ice};
   if (in.restart) build.restart_state = in.restart->all.empty() ? &in.restart->state : &in.restart->all.front();
   build.relax_progress = relaxation_poll(in.s, comm, signals, progress);
+  build.relaxation_cache = {.dir = opt.no_cache ? "" : sim::default_cache_dir(), .file = opt.relaxation};
   std::optional<sim::Simulation> built;
   try {
     built.emplace(sim::build_simulation(in.s, comm, build));
