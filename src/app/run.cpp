@@ -18,6 +18,7 @@
 #include "sim/recorder.h"
 #include "sim/report.h"
 #include "sim/simulation.h"
+#include "sim/member_ridge.h"
 
 #include <chrono>
 #include <csignal>
@@ -345,6 +346,14 @@ RunInput load_run(const RunOptions& opt, const par::Comm& comm, std::FILE* progr
   in.out_path = !opt.output.empty() ? opt.output : in.restart ? io::strip_partial(in.restart->run_file) : s.output;
   check_run_output(in.out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
   in.ckpt_path = io::checkpoint_path(in.out_path);
+  if (sim::ridge_per_seed(in.s)) {  // the member's own ridge (docs/ridge.md, "A ridge per seed")
+    const std::string out_dir = fs::absolute(fs::path(in.out_path)).parent_path().string();
+    const sim::MemberRidge r =
+        sim::prepare_member_ridge(in.s, opt.no_cache ? "" : sim::default_cache_dir(), out_dir, comm, progress);
+    if (!r.generated)
+      std::fprintf(progress, "hybridsim: the ridge of seed %llu from the cache: %s\n",
+                   static_cast<unsigned long long>(in.s.seed), r.path.c_str());
+  }
   if (in.restart) in.changes = in.restart->changes;
   for (std::size_t k = in.restart ? in.restart->carried_changes : 0; k < in.changes.size(); ++k)
     std::fprintf(progress, "hybridsim: restart changes %s\n", in.changes[k].c_str());

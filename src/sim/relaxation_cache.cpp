@@ -104,8 +104,10 @@ std::string file_content_hash(const std::string& path) {
 
 nlohmann::json relaxation_key(const scene::Scene& s) {
   nlohmann::json sc = s.json.is_object() ? s.json : nlohmann::json::object();
-  // Fields that do not enter the relaxation or the state it leaves at t = 0.
-  for (const char* k : {"name", "description", "output", "stability", "parallel", "analysis", "ridge", "seed"})
+  // Fields that do not enter the relaxation or the state it leaves at t = 0 (the ridge
+  // definition enters through the ridge file's content; the seed stays: it draws the lattice's
+  // perturbation).
+  for (const char* k : {"name", "description", "output", "stability", "parallel", "analysis", "ridge"})
     sc.erase(k);
   if (sc.contains("time") && sc["time"].is_object())
     for (const char* k : {"duration", "output_interval", "snapshot_interval", "checkpoint_interval"})

@@ -7,7 +7,7 @@
 // The key (relaxation_key) is a JSON object: the scene as the run reads it (--set applied)
 // without the fields that do not enter the relaxation (name, description, output, the run's
 // duration and output intervals, stability limits, parallel settings, the ISO analysis inputs,
-// the ridge definition and seed), the ridge file and the structure's mesh file replaced by a hash
+// the ridge definition), the ridge file and the structure's mesh file replaced by a hash
 // of their content, and the build's arithmetic identity (build_identity.h). The file stores the
 // key itself, not only its hash, so that a refusal names the first field that differs.
 //

@@ -649,3 +649,31 @@ TEST(RelaxationCache, AnotherKeyRelaxesAnewAndAnExplicitFileOfAnotherKeyIsRefuse
   EXPECT_EQ(string_attribute(work_dir() / "k_l.h5", "/analysis/relaxation", "relaxation_file"), "mine.h5");
   expect_same_series(work_dir() / "k_w.h5", work_dir() / "k_l.h5");
 }
+
+// A ridge per seed (docs/ridge.md): with `seed` set, the scene's ridge definition is generated
+// with that seed into the cache, once: a second run with the same seed finds it (no second
+// generation), another seed generates another ridge (other blocks). Both relax and cache their
+// relaxation as any run. Fails without the seed's override (one ridge for both seeds) or
+// without the look-up (a second generation).
+TEST(RelaxationCache, EachSeedGeneratesItsOwnRidgeOnceAndReusesIt) {
+  make_scene();
+  const std::string env = cache_env("seeds");
+  const std::string shortrun = " --set time.duration=0.004 --set blocks.relax.max_time=0.05";
+  const auto a = hybridsim("run ridge_run.json -o s3a.h5 --set seed=3" + shortrun, env);
+  ASSERT_EQ(a.rc, 0) << a.err;
+  EXPECT_NE(a.err.find("generating the ridge of seed 3 into"), std::string::npos) << a.err;
+  const auto b = hybridsim("run ridge_run.json -o s3b.h5 --set seed=3" + shortrun, env);
+  ASSERT_EQ(b.rc, 0) << b.err;
+  EXPECT_EQ(b.err.find("generating the ridge"), std::string::npos) << b.err;
+  EXPECT_NE(b.err.find("the ridge of seed 3 from the cache"), std::string::npos) << b.err;
+  EXPECT_EQ(string_attribute(work_dir() / "s3b.h5", "/analysis/relaxation", "source"), "loaded");
+  expect_same_series(work_dir() / "s3a.h5", work_dir() / "s3b.h5");
+  const auto c = hybridsim("run ridge_run.json -o s4.h5 --set seed=4" + shortrun, env);
+  ASSERT_EQ(c.rc, 0) << c.err;
+  EXPECT_NE(c.err.find("generating the ridge of seed 4 into"), std::string::npos) << c.err;
+  std::vector<fs::path> ridges;
+  for (const auto& e : fs::directory_iterator(work_dir() / "seeds" / "ridge")) ridges.push_back(e.path());
+  ASSERT_EQ(ridges.size(), 2u);
+  EXPECT_NE(read_doubles(ridges[0], "/ridge/blocks/position"), read_doubles(ridges[1], "/ridge/blocks/position"));
+  EXPECT_EQ(entries("seeds"), 2u);  // one relaxation per seed
+}
