@@ -1,6 +1,7 @@
 #include "app/checkpoint.h"
 
 #include "common/error.h"
+#include "json/reader.h"
 #include "io/run_file.h"
 #include "parallel/comm.h"
 #include "scene/scene.h"
@@ -28,29 +29,6 @@ nlohmann::json identity_json(const nlohmann::json& j, bool legacy = false) {
     if (c.contains("time") && c["time"].is_object()) c["time"].erase("checkpoint_interval");
   }
   return c;
-}
-
-/// The first JSON pointer at which a and b differ ("" when equal).
-std::string first_difference(const nlohmann::json& a, const nlohmann::json& b, const std::string& at = "") {
-  if (a.type() != b.type()) return at.empty() ? "/" : at;
-  if (a.is_object()) {
-    for (auto it = a.begin(); it != a.end(); ++it) {
-      if (!b.contains(it.key())) return at + "/" + it.key();
-      const std::string d = first_difference(it.value(), b[it.key()], at + "/" + it.key());
-      if (!d.empty()) return d;
-    }
-    for (auto it = b.begin(); it != b.end(); ++it)
-      if (!a.contains(it.key())) return at + "/" + it.key();
-    return "";
-  }
-  if (a.is_array()) {
-    for (std::size_t k = 0; k < std::min(a.size(), b.size()); ++k) {
-      const std::string d = first_difference(a[k], b[k], at + "/" + std::to_string(k));
-      if (!d.empty()) return d;
-    }
-    return a.size() == b.size() ? "" : at + "/" + std::to_string(std::min(a.size(), b.size()));
-  }
-  return a == b ? "" : (at.empty() ? "/" : at);
 }
 
 /// "/stability/<key>: <was> -> <now>" for each stability limit whose value the restart changes
@@ -120,9 +98,9 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
     std::string where, legacy;
     try {
       const nlohmann::json saved = nlohmann::json::parse(r.meta.scene_text);
-      where = first_difference(identity_json(saved), nlohmann::json::parse(mine));
+      where = json_first_difference(identity_json(saved), nlohmann::json::parse(mine));
       if (where.empty()) {  // only /stability differs, and the checkpoint's hash includes it
-        where = first_difference(identity_json(saved, true), identity_json(s.json, true));
+        where = json_first_difference(identity_json(saved, true), identity_json(s.json, true));
         legacy = " (this checkpoint was written before the stability limits could change on a restart: keep "
                  "its /stability values)";
       }

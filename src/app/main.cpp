@@ -47,6 +47,14 @@ void add_common(CLI::App* a, hs::app::RunOptions& opt, bool with_output) {
     a->add_option("--restart", opt.restart,
                   "continue the run in this run file (or its .ckpt.h5 checkpoint) from its last checkpoint; "
                   "the output (default: that run file) holds the whole series (docs/output.md, \"Checkpoints\")");
+    CLI::Option* rel =
+        a->add_option("--relaxation", opt.relaxation,
+                      "the relaxation before the freeze from this file when it exists (refused when it holds another "
+                      "scene's or build's), else relaxed and written there (docs/bridge.md, \"The relaxation cache\")");
+    a->add_flag("--no-cache", opt.no_cache,
+                "neither look up nor write the shared relaxation cache ($HYBRIDSIM_CACHE, else "
+                "${XDG_CACHE_HOME:-$HOME/.cache}/hybridsim): the run relaxes")
+        ->excludes(rel);
   }
   a->add_option("--set", opt.overrides,
                 "override a scene field, e.g. --set ice.thickness=0.9 (value parsed as JSON, else a string); "

@@ -19,6 +19,7 @@
 #include "sim/recorder.h"
 #include "sim/report.h"
 #include "sim/simulation.h"
+#include "sim/member_ridge.h"
 
 #include <chrono>
 #include <csignal>
@@ -368,6 +369,14 @@ RunInput load_run(const RunOptions& opt, const par::Comm& comm, std::FILE* progr
   in.ckpt_path = io::checkpoint_path(in.out_path);
   in.locks = lock_outputs(opt, in, from, comm);  // exit 2 while another run writes any of them
   if (from) in.restart = read_restart(opt.restart, s, comm);
+  if (sim::ridge_per_seed(in.s)) {  // the member's own ridge (docs/ridge.md, "A ridge per seed")
+    const std::string out_dir = fs::absolute(fs::path(in.out_path)).parent_path().string();
+    const sim::MemberRidge r =
+        sim::prepare_member_ridge(in.s, opt.no_cache ? "" : sim::default_cache_dir(), out_dir, comm, progress);
+    if (!r.generated)
+      std::fprintf(progress, "hybridsim: the ridge of seed %llu from the cache: %s\n",
+                   static_cast<unsigned long long>(in.s.seed), r.path.c_str());
+  }
   if (in.restart) in.changes = in.restart->changes;
   for (std::size_t k = in.restart ? in.restart->carried_changes : 0; k < in.changes.size(); ++k)
     std::fprintf(progress, "hybridsim: restart changes %s\n", in.changes[k].c_str());
@@ -385,6 +394,7 @@ std::optional<sim::Simulation> build_run(const RunOptions& opt, const RunInput& 
   sim::BuildOptions build{.ignore_memory_limit = opt.ignore_memory_limit, .calibrated = &in.ice};
   if (in.restart) build.restart_state = in.restart->all.empty() ? &in.restart->state : &in.restart->all.front();
   build.relax_progress = relaxation_poll(in.s, comm, signals, progress);
+  build.relaxation_cache = {.dir = opt.no_cache ? "" : sim::default_cache_dir(), .file = opt.relaxation};
   std::optional<sim::Simulation> built;
   try {
     built.emplace(sim::build_simulation(in.s, comm, build));

@@ -26,6 +26,11 @@ struct RunOptions {
   /// --restart: continue the run of this run file (or of its checkpoint file) from its last
   /// checkpoint (docs/output.md, "Checkpoints"); empty = start from t = 0.
   std::string restart;
+  /// --relaxation: the relaxation file of the scene (docs/bridge.md, "The relaxation cache"):
+  /// loaded when it exists (refused, exit 2, when it holds another scene's or build's), else the
+  /// run relaxes and writes it; empty = the shared cache directory.
+  std::string relaxation;
+  bool no_cache = false;  ///< --no-cache: neither look up nor write the shared relaxation cache
   // `hybridsim calibrate` only (calibrate_command.h)
   std::string calibrate_tests = "tension,bending,strip";  ///< --tests: which virtual tests to run
   double max_strip_steps = 6e4;        ///< --max-strip-steps: above it the strip test is softened

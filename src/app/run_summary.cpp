@@ -40,6 +40,13 @@ RunCounts print_setup(std::FILE* progress, const scene::Scene& s, const sim::Sim
                    x.time, static_cast<unsigned long long>(x.steps), x.at_rest() ? "at rest" : "NOT at rest",
                    x.max_block_speed, x.max_particle_speed, x.block_kinetic_energy, x.sheet_mean_dz, x.sheet_max_dz,
                    static_cast<unsigned long long>(x.lattice_bonds_broken));
+    const sim::RelaxationOrigin& o = sim.relaxation_origin();
+    if (x.ran && o.source == "loaded")
+      std::fprintf(progress, "hybridsim: relaxation loaded from %s (key %s): no step of it run here\n", o.file.c_str(),
+                   o.key_hash.c_str());
+    else if (x.ran && o.source == "computed" && !o.file.empty())
+      std::fprintf(progress, "hybridsim: relaxation computed and cached in %s (key %s)\n", o.file.c_str(),
+                   o.key_hash.c_str());
     if (x.ran && x.jointed_time > 0.0)
       std::fprintf(progress,
                    "hybridsim: of it, %.4g s with the %llu joints between blocks held (fastest block %.3g m/s when "

@@ -172,6 +172,9 @@ void Engine::save_state(StateArchive& a, const std::string& p) const {
                      step_, last_balance_step_, s.n_owned, s.n_ghost, s.next_gid(),
                      forces_valid_, need_rebuild_, dt_auto_, distributed_};
   a.put_value(p + "scalars", sc);
+  // The last step's deepest contact (a run's first row, when it starts from a relaxed state
+  // loaded from the relaxation cache).
+  a.put_value(p + "worst_overlap_ratio", worst_overlap_ratio_);
   // Wall-clock figures (the "time" cost model's measure): the same physics with other timings.
   a.put_value(p + "parallel_stats_balance_seconds", force_seconds_since_balance_);
   // MPI: the cuts and the ghost exchange lists of the last rebuild.
@@ -280,6 +283,7 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
   halo_ = sc.halo;
   max_bond_length_ = sc.max_bond_length;
   force_seconds_since_balance_ = a.get_value<double>(p + "parallel_stats_balance_seconds");
+  if (a.has(p + "worst_overlap_ratio")) worst_overlap_ratio_ = a.get_value<double>(p + "worst_overlap_ratio");
   step_ = sc.step;
   last_balance_step_ = sc.last_balance_step;
   forces_valid_ = sc.forces_valid != 0;

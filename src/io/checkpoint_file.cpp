@@ -91,14 +91,16 @@ std::string read_bytes(hid_t loc, const std::string& name, const std::string& fi
   return s;
 }
 
-Handle open_read(const std::string& path) {
+Handle open_read(const std::string& path, const std::string& option) {
   if (!fs::exists(path))
-    throw InputError("--restart", "no checkpoint file '" + path +
-                                      "': the run wrote none (time.checkpoint_interval = 0 and it was not stopped by "
-                                      "SIGINT/SIGTERM), or it was moved");
+    throw InputError(option, option == "--restart"
+                                 ? "no checkpoint file '" + path +
+                                       "': the run wrote none (time.checkpoint_interval = 0 and it was not stopped by "
+                                       "SIGINT/SIGTERM), or it was moved"
+                                 : "no file '" + path + "'");
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   const hid_t f = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  if (f < 0) throw InputError("--restart", "cannot open '" + path + "' as HDF5 (" + h5::error_stack_text() + ")");
+  if (f < 0) throw InputError(option, "cannot open '" + path + "' as HDF5 (" + h5::error_stack_text() + ")");
   return Handle(f, H5Fclose);
 }
 
@@ -180,14 +182,14 @@ void write_checkpoint(const std::string& path, const CheckpointMeta& meta, const
   }
 }
 
-CheckpointMeta read_checkpoint_meta(const std::string& path) {
-  Handle f = open_read(path);
+CheckpointMeta read_checkpoint_meta(const std::string& path, const std::string& option) {
+  Handle f = open_read(path, option);
   if (H5Lexists(f.get(), "/checkpoint", H5P_DEFAULT) <= 0)
-    throw InputError("--restart", "'" + path + "' holds no checkpoint (/checkpoint is missing)");
+    throw InputError(option, "'" + path + "' holds no checkpoint (/checkpoint is missing)");
   Handle g(check_id(H5Gopen2(f.get(), "/checkpoint", H5P_DEFAULT), "H5Gopen2", "/checkpoint", path), H5Gclose);
   CheckpointMeta m;
   if (get_str_attr(g.get(), "format", path) != kFormat)
-    throw InputError("--restart", "'" + path + "' is a checkpoint of another format (expected " + kFormat + ")");
+    throw InputError(option, "'" + path + "' is a checkpoint of another format (expected " + kFormat + ")");
   m.step = get_attr<std::uint64_t>(g.get(), "step", H5T_NATIVE_UINT64, path);
   m.time = get_attr<double>(g.get(), "time", H5T_NATIVE_DOUBLE, path);
   m.ranks = get_attr<int>(g.get(), "ranks", H5T_NATIVE_INT, path);
@@ -210,11 +212,11 @@ herr_t collect_dataset(hid_t loc, const char* name, const H5L_info_t*, void* dat
 }
 }  // namespace
 
-StateArchive read_checkpoint_rank(const std::string& path, int rank) {
-  Handle f = open_read(path);
+StateArchive read_checkpoint_rank(const std::string& path, int rank, const std::string& option) {
+  Handle f = open_read(path, option);
   const std::string g = "/checkpoint/rank_" + std::to_string(rank);
   if (H5Lexists(f.get(), "/checkpoint", H5P_DEFAULT) <= 0 || H5Lexists(f.get(), g.c_str(), H5P_DEFAULT) <= 0)
-    throw InputError("--restart", "'" + path + "' holds no state for rank " + std::to_string(rank));
+    throw InputError(option, "'" + path + "' holds no state for rank " + std::to_string(rank));
   Handle grp(check_id(H5Gopen2(f.get(), g.c_str(), H5P_DEFAULT), "H5Gopen2", g, path), H5Gclose);
   std::vector<std::string> names;
   check(H5Lvisit(grp.get(), H5_INDEX_NAME, H5_ITER_INC, collect_dataset, &names), "H5Lvisit", g, path);

@@ -49,11 +49,12 @@ std::string text_hash(const std::string& text);
 /// MPI rank 0 calls this with the gathered archives). Throws std::runtime_error naming the file.
 void write_checkpoint(const std::string& path, const CheckpointMeta& meta, const std::vector<StateArchive>& ranks);
 
-/// The attributes of a checkpoint; hs::InputError("--restart", ...) when `path` is missing or
-/// holds no /checkpoint.
-CheckpointMeta read_checkpoint_meta(const std::string& path);
+/// The attributes of a checkpoint; hs::InputError(option, ...) when `path` is missing or holds
+/// no /checkpoint. `option`: the command-line option that named the file (a relaxation file,
+/// sim/relaxation_cache.h, is a checkpoint of the state at t = 0).
+CheckpointMeta read_checkpoint_meta(const std::string& path, const std::string& option = "--restart");
 /// Rank k's archive.
-StateArchive read_checkpoint_rank(const std::string& path, int rank);
+StateArchive read_checkpoint_rank(const std::string& path, int rank, const std::string& option = "--restart");
 
 /// One series of a run file, its first `rows` rows.
 struct SeriesRows {

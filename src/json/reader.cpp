@@ -300,4 +300,26 @@ std::string JsonObject::choice(const std::string& key, const std::string& def, c
   return s;
 }
 
+std::string json_first_difference(const nlohmann::json& a, const nlohmann::json& b, const std::string& at) {
+  if (a.type() != b.type()) return at.empty() ? "/" : at;
+  if (a.is_object()) {
+    for (auto it = a.begin(); it != a.end(); ++it) {
+      if (!b.contains(it.key())) return at + "/" + json_pointer_token(it.key());
+      const std::string d = json_first_difference(it.value(), b[it.key()], at + "/" + json_pointer_token(it.key()));
+      if (!d.empty()) return d;
+    }
+    for (auto it = b.begin(); it != b.end(); ++it)
+      if (!a.contains(it.key())) return at + "/" + json_pointer_token(it.key());
+    return "";
+  }
+  if (a.is_array()) {
+    for (std::size_t k = 0; k < std::min(a.size(), b.size()); ++k) {
+      const std::string d = json_first_difference(a[k], b[k], at + "/" + std::to_string(k));
+      if (!d.empty()) return d;
+    }
+    return a.size() == b.size() ? "" : at + "/" + std::to_string(std::min(a.size(), b.size()));
+  }
+  return a == b ? "" : (at.empty() ? "/" : at);
+}
+
 }  // namespace hs

@@ -63,6 +63,9 @@ std::string json_pointer_token(const std::string& key);
 std::string json_pointer_display(const std::string& pointer);
 /// `unknown key "k" (did you mean "x"?); allowed here: a, b, c` for a key not in `allowed`.
 std::string unknown_key_text(const std::string& key, const std::vector<std::string>& allowed);
+/// The first JSON pointer at which `a` and `b` differ (object keys in a's order, then keys only b
+/// has; array elements by index): "" when equal, "/" when the roots differ in type or value.
+std::string json_first_difference(const nlohmann::json& a, const nlohmann::json& b, const std::string& at = "");
 
 // ---------------------------------------------------------------- values
 

@@ -52,6 +52,7 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
   an.block_bonds_broken = hyb.block_particle_bonds_broken();
   an.conversion = bridge::to_string(sim.blocks().def.mode);
   an.relax = hyb.relax_report();
+  an.relax_origin = sim.relaxation_origin();
   an.rest_window = f.rest_window;
   an.final_mean_block_speed = f.final_mean_block_speed;
   an.final_mean_particle_speed = f.final_mean_particle_speed;
@@ -179,7 +180,7 @@ void write_hybrid(io::RunFileEditor& f, const RunReport& a) {
 }
 
 /// /analysis/relaxation: what the relaxation before the freeze did (docs/bridge.md, "Relaxation").
-void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
+void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r, const RelaxationOrigin& o) {
   const std::string g = "/analysis/relaxation";
   f.add_group(g);
   const std::pair<const char*, double> figures[] = {
@@ -213,6 +214,12 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
       {"rigid_max_block_speed", r.rigid_max_block_speed},
   };
   for (const auto& [name, value] : figures) f.set_attribute(g, name, value);
+  // Where it came from (docs/bridge.md, "The relaxation cache"): the figures above are the
+  // relaxation's, steps_run what this process ran of it.
+  f.set_attribute(g, "source", o.source);
+  f.set_attribute(g, "relaxation_file", o.file);
+  f.set_attribute(g, "key_hash", o.key_hash);
+  f.set_attribute(g, "steps_run", static_cast<double>(o.steps_run));
   f.set_attribute(g, "description",
                   std::string("relaxation before the freeze joints and block-particle freeze bonds were made: "
                               "simulated time (s) and steps, converged (1: every block and particle slower than "
@@ -226,7 +233,9 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r) {
                               "converged (1: at rest), the fastest block when the rigid stages ended (m/s), its damping (1/s), "
                               "hold_freeze_bonds (1: the particle freeze bonds held in place, unbreakable, through it), "
                               "freeze_bonds_held and freeze_bonds_overloaded (those beyond their strength at its end); the run's "
-                              "t = 0 is its end"));
+                              "t = 0 is its end; source (computed: run by this process; loaded: from the relaxation "
+                              "file relaxation_file, the cache entry of key key_hash or --relaxation; checkpoint: a "
+                              "restart's), steps_run (DEM steps of relaxation this process ran: 0 unless computed)"));
 }
 
 /// /analysis/iso: the results, every input (flat value attributes as before, and per input a
@@ -290,7 +299,7 @@ void write_analysis(const std::string& path, const RunReport& a) {
     f.set_attribute("/analysis/pieces", "characteristic_length_note", a.L_c_note);
   if (a.has_iso) write_iso(f, a);
   if (a.has_hybrid) write_hybrid(f, a);
-  if (a.relax.ran) write_relaxation(f, a.relax);
+  if (a.relax.ran) write_relaxation(f, a.relax, a.relax_origin);
   f.flush();
 }
 

@@ -10,6 +10,7 @@
 #include "sim/iso_inputs.h"
 #include "sim/recorder.h"
 #include "sim/simulation.h"
+#include "sim/relaxation_cache.h"
 
 #include <cstdint>
 #include <string>
@@ -46,6 +47,7 @@ struct RunReport {
   std::uint64_t block_bonds_broken = 0;  ///< block-particle freeze bonds broken
   std::string conversion;                ///< the scene's conversion mode
   bridge::RelaxReport relax;             ///< the relaxation before the freeze (relax.ran = 0: none)
+  RelaxationOrigin relax_origin;         ///< where it came from (computed, loaded, checkpoint)
   /// At the end of the run (the at-rest check, docs/bridge.md "Relaxation"): fastest rigid block
   /// (centre speed + |omega| x half diagonal) and fastest particle (all ranks), m/s.
   double final_max_block_speed = 0.0, final_max_particle_speed = 0.0;

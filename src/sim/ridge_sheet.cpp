@@ -263,6 +263,7 @@ rigid::RidgeDef run_scene_ridge_def(const scene::Scene& s, std::string* ridge_ba
   const nlohmann::json rj = ridge_section_json(s.json.at("ridge"), s.base_dir, rb, w);
   rigid::RidgeDef d = parse_section(rj, rb, w);
   take_run_ice(d, rj, s, w);
+  if (s.seed != 0) d.seed = s.seed;  // the ensemble member's ridge (docs/ridge.md, "A ridge per seed")
   if (d.name.empty()) d.name = s.name;
   if (ridge_base) *ridge_base = rb;
   if (where) *where = w;

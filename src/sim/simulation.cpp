@@ -1,6 +1,7 @@
 #include "sim/simulation.h"
 
 #include "common/error.h"
+#include "common/state_archive.h"
 #include "parallel/comm.h"
 
 #include <algorithm>
@@ -64,6 +65,95 @@ bonded::ParallelDef parallel_def(const scene::Scene& s) {
   return pd;
 }
 
+namespace {
+
+/// The warnings of a relaxation that did not end at rest, held freeze bonds where they do not
+/// act, and overloaded bonds or joints at the freeze.
+std::vector<std::string> relaxation_warnings(const scene::Scene& s, bridge::ConversionMode mode,
+                                             const bridge::RelaxReport& rep) {
+  std::vector<std::string> out;
+  const auto& r = s.blocks.relax;
+  // Not at rest at the freeze: the last stage did not end at rest (a first stage that ends
+  // at max_time is what the jointed stage is for).
+  const bool jointed = rep.jointed_time > 0.0, lattice = rep.lattice_time > 0.0;
+  if (!rep.at_rest()) {
+    std::ostringstream w;
+    w << "/blocks/relax: the blocks and the sheet were not at rest after "
+      << (lattice   ? "the lattice stage's lattice_time = "
+          : jointed ? "the jointed stage's jointed_time = "
+                    : "max_time = ")
+      << (lattice ? r.lattice_time : jointed ? r.jointed_time : r.max_time)
+      << " s of relaxation (fastest block " << rep.max_block_speed << " m/s, fastest particle "
+      << rep.max_particle_speed << " m/s; at rest means below speed = " << r.speed << " m/s for hold = " << r.hold
+      << " s); the joints and bonds were frozen there and the run starts from that state. Raise "
+      << (lattice   ? "/blocks/relax/lattice_time"
+          : jointed ? "/blocks/relax/jointed_time"
+                    : "/blocks/relax/max_time, set /blocks/relax/jointed_time (e.g. 3)")
+      << " or set /blocks/relax/damping (e.g. 0.5)";
+    out.push_back(w.str());
+  }
+  // (lattice_time, lattice_damping and blocks.lattice are all_at_start's settings: a keel scene
+  // carries them for its reference runs, and its hybrid and never runs pass them over quietly.)
+  if (r.hold_freeze_bonds && !(r.lattice_time > 0.0 && mode == bridge::ConversionMode::AllAtStart))
+    out.push_back("/blocks/relax/hold_freeze_bonds: set, but it acts only in all_at_start's lattice stage "
+                  "(blocks.conversion = all_at_start and blocks.relax.lattice_time > 0); ignored here");
+  if (lattice && rep.freeze_bonds_overloaded) {
+    std::ostringstream w;
+    w << "/blocks/relax: " << rep.freeze_bonds_overloaded << " of the " << rep.freeze_bonds_held
+      << " freeze bonds held in the lattice stage carry more than their strength at its end and will break at "
+         "the run's first step";
+    out.push_back(w.str());
+  }
+  if (jointed && !lattice && rep.joints_overloaded) {  // (a lattice stage removed those joints)
+    std::ostringstream w;
+    w << "/blocks/relax: " << rep.joints_overloaded << " of the " << rep.jointed_joints
+      << " joints held in the jointed stage carry more than their strength at its end and will break at "
+         "the run's first step (the keel's static load on small joints)";
+    out.push_back(w.str());
+  }
+  return out;
+}
+
+}  // namespace
+
+void relax_or_load(Simulation& sim, const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {
+  bonded::Engine& e = *sim.built_.engine;
+  bridge::HybridSystem& h = *sim.hybrid_;
+  RelaxationOrigin& origin = sim.relaxation_origin_;
+  std::vector<std::string>& warnings = sim.blocks_.warnings;
+  const RelaxationCacheDef& cache = opt.relaxation_cache;
+  nlohmann::json key;
+  if (cache.enabled()) {
+    key = relaxation_key(s);
+    if (const std::optional<StateArchive> a = find_relaxation(cache, key, comm, origin, warnings)) {
+      // As a restart from a checkpoint at t = 0: the same freeze, then the state it left.
+      try {
+        h.restore_relaxation(*a, "hybrid/");
+        e.load_state(*a, "engine/");
+        if (const std::size_t lost = h.load_state(*a, "hybrid/"))
+          warnings.push_back("relaxation cache: " + std::to_string(lost) + " saved rigid contact points of '" +
+                             origin.file + "' found no contact manifold");
+      } catch (const std::exception& ex) {
+        throw InputError("--relaxation", "the relaxed state in '" + origin.file +
+                                             "' does not fit the scene as built: " + ex.what());
+      }
+      for (std::string& w : relaxation_warnings(s, sim.blocks_.def.mode, h.relax_report())) warnings.push_back(w);
+      return;
+    }
+  }
+  const bridge::RelaxReport& rep = h.relax(relax_def(s), opt.relax_progress);
+  if (rep.stopped) throw RelaxationStopped(rep.time);
+  origin.source = "computed";
+  origin.steps_run = rep.steps;
+  for (std::string& w : relaxation_warnings(s, sim.blocks_.def.mode, rep)) warnings.push_back(w);
+  if (cache.enabled()) {
+    StateArchive a;
+    e.save_state(a, "engine/");
+    h.save_state(a, "hybrid/");
+    store_relaxation(cache, key, a, comm, origin, warnings);
+  }
+}
+
 Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {
   Simulation sim;
   MemoryEstimate est = memory_estimate(s);
@@ -99,49 +189,9 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
         throw InputError("--restart", std::string("the checkpoint's relaxed ridge does not fit the scene as built: ") +
                                           ex.what());
       }
+      sim.relaxation_origin_.source = "checkpoint";
     } else {
-      const auto& r = s.blocks.relax;
-      const bridge::RelaxReport& rep = sim.hybrid_->relax(relax_def(s), opt.relax_progress);
-      if (rep.stopped) throw RelaxationStopped(rep.time);
-      // Not at rest at the freeze: the last stage did not end at rest (a first stage that ends
-      // at max_time is what the jointed stage is for).
-      const bool jointed = rep.jointed_time > 0.0, lattice = rep.lattice_time > 0.0;
-      if (!rep.at_rest()) {
-        std::ostringstream w;
-        w << "/blocks/relax: the blocks and the sheet were not at rest after "
-          << (lattice   ? "the lattice stage's lattice_time = "
-              : jointed ? "the jointed stage's jointed_time = "
-                        : "max_time = ")
-          << (lattice ? r.lattice_time : jointed ? r.jointed_time : r.max_time)
-          << " s of relaxation (fastest block " << rep.max_block_speed << " m/s, fastest particle "
-          << rep.max_particle_speed << " m/s; at rest means below speed = " << r.speed << " m/s for hold = " << r.hold
-          << " s); the joints and bonds were frozen there and the run starts from that state. Raise "
-          << (lattice   ? "/blocks/relax/lattice_time"
-              : jointed ? "/blocks/relax/jointed_time"
-                        : "/blocks/relax/max_time, set /blocks/relax/jointed_time (e.g. 3)")
-          << " or set /blocks/relax/damping (e.g. 0.5)";
-        sim.blocks_.warnings.push_back(w.str());
-      }
-      // (lattice_time, lattice_damping and blocks.lattice are all_at_start's settings: a keel scene
-      // carries them for its reference runs, and its hybrid and never runs pass them over quietly.)
-      if (r.hold_freeze_bonds && !(r.lattice_time > 0.0 && def.mode == bridge::ConversionMode::AllAtStart))
-        sim.blocks_.warnings.push_back("/blocks/relax/hold_freeze_bonds: set, but it acts only in all_at_start's "
-                                       "lattice stage (blocks.conversion = all_at_start and blocks.relax.lattice_time "
-                                       "> 0); ignored here");
-      if (lattice && rep.freeze_bonds_overloaded) {
-        std::ostringstream w;
-        w << "/blocks/relax: " << rep.freeze_bonds_overloaded << " of the " << rep.freeze_bonds_held
-          << " freeze bonds held in the lattice stage carry more than their strength at its end and will break at "
-             "the run's first step";
-        sim.blocks_.warnings.push_back(w.str());
-      }
-      if (jointed && !lattice && rep.joints_overloaded) {  // (a lattice stage removed those joints)
-        std::ostringstream w;
-        w << "/blocks/relax: " << rep.joints_overloaded << " of the " << rep.jointed_joints
-          << " joints held in the jointed stage carry more than their strength at its end and will break at "
-             "the run's first step (the keel's static load on small joints)";
-        sim.blocks_.warnings.push_back(w.str());
-      }
+      relax_or_load(sim, s, comm, opt);
     }
   }
   if (comm.parallel()) {  // every rank built the whole scene; each keeps its share

@@ -13,6 +13,7 @@
 #include "scene/scene.h"
 #include "sim/blocks.h"
 #include "sim/build.h"
+#include "sim/relaxation_cache.h"
 #include "sim/run_stats.h"
 
 #include <cstdint>
@@ -74,6 +75,9 @@ struct BuildOptions {
   /// Called every rigid step of the relaxation (progress lines); true stops it: build_simulation
   /// then throws RelaxationStopped.
   bridge::RelaxProgressFn relax_progress{};
+  /// The relaxation cache (relaxation_cache.h): where a relaxed state is looked up instead of
+  /// relaxing, and written after relaxing. Off by default (`hybridsim run` turns it on).
+  RelaxationCacheDef relaxation_cache{};
 };
 
 /// build_simulation was asked to stop during the relaxation (relax_progress returned true).
@@ -98,6 +102,9 @@ class Simulation {
   const BlockSetup& blocks() const { return blocks_; }
   /// Warnings found while building (for the user; not errors).
   const std::vector<std::string>& warnings() const { return blocks_.warnings; }
+  /// Where the relaxation before the freeze came from (computed, loaded from a relaxation file,
+  /// or a restart's checkpoint); source "" without one.
+  const RelaxationOrigin& relaxation_origin() const { return relaxation_origin_; }
 
   bool has_structure() const { return built_.structure >= 0; }
   bool has_blocks() const { return hybrid_->has_rigid(); }
@@ -142,11 +149,19 @@ class Simulation {
 
  private:
   friend Simulation build_simulation(const scene::Scene&, const par::Comm&, const BuildOptions&);
+  friend void relax_or_load(Simulation&, const scene::Scene&, const par::Comm&, const BuildOptions&);
   Built built_;
   BlockSetup blocks_;
+  RelaxationOrigin relaxation_origin_;
   std::unique_ptr<bridge::HybridSystem> hybrid_;
   Schedule schedule_;
 };
+
+/// The relaxation before the freeze of a built simulation whose hybrid system waits for it: loaded
+/// from the relaxation cache when it holds the scene's key (the engine's and the hybrid system's
+/// state at t = 0, as the relaxation left them), else run (and written to the cache). Adds the
+/// warnings of a relaxation that did not end at rest. Throws RelaxationStopped.
+void relax_or_load(Simulation& sim, const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt);
 
 /// The relaxation before the freeze as the scene gives it (blocks.relax), for HybridSystem::relax.
 bridge::RelaxDef relax_def(const scene::Scene& s);

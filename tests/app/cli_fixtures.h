@@ -36,10 +36,21 @@ inline std::string slurp(const fs::path& p) {
   return s.str();
 }
 
-/// Runs `hybridsim <args>` in `dir` through /bin/sh, after `prefix` (e.g. "ulimit -v N && ").
+/// "export HYBRIDSIM_CACHE='<dir>/relaxation-cache-<n>' && ", a new directory for every call: a
+/// run started after it neither reads nor writes the user's relaxation cache (docs/bridge.md, "The
+/// relaxation cache"), and finds no other run's relaxation unless the test names a shared one.
+inline std::string fresh_cache_env(const fs::path& dir) {
+  static int calls = 0;
+  const fs::path cache = dir / ("relaxation-cache-" + std::to_string(::getpid()) + "-" + std::to_string(++calls));
+  return "export HYBRIDSIM_CACHE='" + cache.string() + "' && ";
+}
+
+/// Runs `hybridsim <args>` in `dir` through /bin/sh, after `prefix` (e.g. "ulimit -v N && "),
+/// with a fresh relaxation cache (fresh_cache_env) unless `prefix` sets HYBRIDSIM_CACHE itself.
 inline CliResult run_hybridsim(const fs::path& dir, const std::string& args, const std::string& prefix = "") {
+  const std::string cache = prefix.find("HYBRIDSIM_CACHE") == std::string::npos ? fresh_cache_env(dir) : "";
   const std::string cmd =
-      "cd '" + dir.string() + "' && " + prefix + "'" HYBRIDSIM_EXE "' " + args + " > out.txt 2> err.txt";
+      "cd '" + dir.string() + "' && " + cache + prefix + "'" HYBRIDSIM_EXE "' " + args + " > out.txt 2> err.txt";
   const int status = std::system(cmd.c_str());
   CliResult r;
   r.rc = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);

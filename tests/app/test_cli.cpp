@@ -485,7 +485,7 @@ TEST(CliOutput, FullDiskEndsWithExitOneAndAReadableFile) {
   write("tiny.json", tiny().dump(2));
   for (const auto& p : partial_files("full")) fs::remove(p);
   // (built before the fork: work_dir() is named by the pid)
-  const std::string cmd = "cd '" + work_dir().string() + "' && '" HYBRIDSIM_EXE
+  const std::string cmd = "cd '" + work_dir().string() + "' && " + hs::testing::fresh_cache_env(work_dir()) + "'" HYBRIDSIM_EXE
                           "' run tiny.json -o full.h5 --set time.duration=0.3 > full_out.txt 2> full_err.txt";
   const pid_t pid = ::fork();
   ASSERT_GE(pid, 0);

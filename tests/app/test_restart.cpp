@@ -237,7 +237,8 @@ TEST(Restart, SigtermLeavesACheckpointThatRestartFinishes) {
   const auto at = static_cast<std::uint64_t>(straight[3 * straight.size() / 8]) + 1;
   fs::remove(work_dir() / "t.h5");
   fs::remove(work_dir() / "t.ckpt.h5");
-  const std::string cmd = "cd '" + work_dir().string() + "' && HYBRIDSIM_TEST_SIGNAL=TERM:loop:" +
+  const std::string cmd = "cd '" + work_dir().string() + "' && " + hs::testing::fresh_cache_env(work_dir()) +
+                          "HYBRIDSIM_TEST_SIGNAL=TERM:loop:" +
                           std::to_string(at) + " exec '" HYBRIDSIM_EXE "' run ridge_run.json -o t.h5" + longer +
                           " > t.out 2> t.err";
   pid_t pid = -1;
@@ -294,13 +295,13 @@ TEST(Restart, RefusesAFileWithoutCheckpointOrAnotherScene) {
 
 namespace {
 
-/// The run file's root string attribute `name` ("" when absent).
-std::string root_attribute(const fs::path& file, const char* name) {
+/// The string attribute `name` of `object` in the run file ("" when absent).
+std::string string_attribute(const fs::path& file, const char* object, const char* name) {
   std::string s;
   const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (f < 0) return s;
-  if (H5Aexists(f, name) > 0) {
-    const hid_t a = H5Aopen(f, name, H5P_DEFAULT);
+  if (H5Aexists_by_name(f, object, name, H5P_DEFAULT) > 0) {
+    const hid_t a = H5Aopen_by_name(f, object, name, H5P_DEFAULT, H5P_DEFAULT);
     const hid_t ft = H5Aget_type(a);
     const hid_t mt = H5Tcopy(H5T_C_S1);
     H5Tset_cset(mt, H5Tget_cset(ft));
@@ -323,6 +324,7 @@ std::string root_attribute(const fs::path& file, const char* name) {
   H5Fclose(f);
   return s;
 }
+std::string root_attribute(const fs::path& file, const char* name) { return string_attribute(file, "/", name); }
 
 }  // namespace
 
@@ -549,4 +551,129 @@ TEST(Restart, ARestartStepsOnlyFromTheCheckpoint) {
   EXPECT_NE(said.find("; restarted at step " + std::to_string(k) + ", " + std::to_string(total - k) + " steps in "),
             std::string::npos)
       << said;
+}
+
+// ---- The relaxation cache (docs/bridge.md, "The relaxation cache")
+
+namespace {
+
+double number_attribute(const fs::path& file, const char* object, const char* name) {
+  double v = NAN;
+  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
+  if (f < 0) return v;
+  const hid_t a = H5Aopen_by_name(f, object, name, H5P_DEFAULT, H5P_DEFAULT);
+  if (a >= 0) {
+    H5Aread(a, H5T_NATIVE_DOUBLE, &v);
+    H5Aclose(a);
+  }
+  H5Fclose(f);
+  return v;
+}
+
+/// The shell prefix that gives runs the cache directory `name` under the work directory.
+std::string cache_env(const std::string& name) {
+  return "export HYBRIDSIM_CACHE='" + (work_dir() / name).string() + "' && ";
+}
+
+std::size_t entries(const std::string& cache) {
+  std::size_t n = 0;
+  std::error_code ec;
+  for (const auto& e : fs::directory_iterator(work_dir() / cache / "relaxation", ec)) n += e.path().extension() == ".h5";
+  return n;
+}
+
+}  // namespace
+
+// A second run of the scene with the same key loads the relaxation the first one cached instead
+// of relaxing (no step of it run: steps_run 0, the relaxation's figures those of the first run),
+// and its series are bit-identical to the first run's through the first conversions (t = 0.318 s)
+// and a broken joint. Fails with the look-up off: the second run relaxes ("computed").
+TEST(RelaxationCache, ASecondRunWithTheSameKeyLoadsItAndItsSeriesAreBitIdentical) {
+  make_scene();
+  const std::string env = cache_env("shared");
+  const auto a = hybridsim("run ridge_run.json -o rc_a.h5 --set time.duration=0.4", env);
+  ASSERT_EQ(a.rc, 0) << a.err;
+  const auto b = hybridsim("run ridge_run.json -o rc_b.h5 --set time.duration=0.4", env);
+  ASSERT_EQ(b.rc, 0) << b.err;
+  const fs::path fa = work_dir() / "rc_a.h5", fb = work_dir() / "rc_b.h5";
+  EXPECT_EQ(string_attribute(fa, "/analysis/relaxation", "source"), "computed");
+  EXPECT_EQ(string_attribute(fb, "/analysis/relaxation", "source"), "loaded");
+  EXPECT_GT(number_attribute(fa, "/analysis/relaxation", "steps_run"), 1000.0);
+  EXPECT_EQ(number_attribute(fb, "/analysis/relaxation", "steps_run"), 0.0);
+  EXPECT_EQ(number_attribute(fb, "/analysis/relaxation", "steps"), number_attribute(fa, "/analysis/relaxation", "steps"));
+  const std::string file = string_attribute(fa, "/analysis/relaxation", "relaxation_file");
+  EXPECT_EQ(string_attribute(fb, "/analysis/relaxation", "relaxation_file"), file);
+  EXPECT_EQ(file.find((work_dir() / "shared" / "relaxation").string()), 0u) << file;
+  EXPECT_NE(b.err.find("relaxation loaded from " + file), std::string::npos) << b.err;
+  EXPECT_EQ(entries("shared"), 1u);
+  const auto conv = read_doubles(fa, "/series/blocks/conversions");
+  ASSERT_FALSE(conv.empty());
+  EXPECT_GE(conv.back(), 1.0) << "the runs reach the first conversion";
+  expect_same_series(fa, fb);
+  // --no-cache: neither looked up nor written
+  const auto c = hybridsim("run ridge_run.json -o rc_c.h5 --set time.duration=0.02 --no-cache", env);
+  ASSERT_EQ(c.rc, 0) << c.err;
+  EXPECT_EQ(string_attribute(work_dir() / "rc_c.h5", "/analysis/relaxation", "source"), "computed");
+  EXPECT_EQ(string_attribute(work_dir() / "rc_c.h5", "/analysis/relaxation", "relaxation_file"), "");
+  EXPECT_EQ(entries("shared"), 1u);
+}
+
+// A field of the key changed (the water drag enters the relaxation) is another key: the run
+// relaxes anew and writes a second entry. The same file named with --relaxation is refused (exit
+// 2) naming the first differing field and both values; a --relaxation file that does not exist
+// is written by the run that relaxes, and loaded by the next.
+TEST(RelaxationCache, AnotherKeyRelaxesAnewAndAnExplicitFileOfAnotherKeyIsRefused) {
+  make_scene();
+  const std::string env = cache_env("keys");
+  const std::string shortrun = " --set time.duration=0.02";
+  ASSERT_EQ(hybridsim("run ridge_run.json -o k_a.h5" + shortrun, env).rc, 0);
+  const auto b = hybridsim("run ridge_run.json -o k_b.h5 --set water.linear_drag_per_area=1200" + shortrun, env);
+  ASSERT_EQ(b.rc, 0) << b.err;
+  EXPECT_EQ(string_attribute(work_dir() / "k_b.h5", "/analysis/relaxation", "source"), "computed");
+  EXPECT_EQ(entries("keys"), 2u);
+  const std::string first = string_attribute(work_dir() / "k_a.h5", "/analysis/relaxation", "relaxation_file");
+  const auto r = hybridsim("run ridge_run.json -o k_r.h5 --set water.linear_drag_per_area=1200 --relaxation '" + first +
+                           "'" + shortrun, env);
+  EXPECT_EQ(r.rc, 2) << r.err;
+  EXPECT_NE(r.err.find("--relaxation"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("first at /scene/water/linear_drag_per_area: 1000 in the file, 1200 for this run"),
+            std::string::npos)
+      << r.err;
+  const auto w = hybridsim("run ridge_run.json -o k_w.h5 --relaxation mine.h5" + shortrun, env);
+  ASSERT_EQ(w.rc, 0) << w.err;
+  EXPECT_EQ(string_attribute(work_dir() / "k_w.h5", "/analysis/relaxation", "source"), "computed");
+  EXPECT_TRUE(fs::exists(work_dir() / "mine.h5"));
+  const auto l = hybridsim("run ridge_run.json -o k_l.h5 --relaxation mine.h5" + shortrun, env);
+  ASSERT_EQ(l.rc, 0) << l.err;
+  EXPECT_EQ(string_attribute(work_dir() / "k_l.h5", "/analysis/relaxation", "source"), "loaded");
+  EXPECT_EQ(string_attribute(work_dir() / "k_l.h5", "/analysis/relaxation", "relaxation_file"), "mine.h5");
+  expect_same_series(work_dir() / "k_w.h5", work_dir() / "k_l.h5");
+}
+
+// A ridge per seed (docs/ridge.md): with `seed` set, the scene's ridge definition is generated
+// with that seed into the cache, once: a second run with the same seed finds it (no second
+// generation), another seed generates another ridge (other blocks). Both relax and cache their
+// relaxation as any run. Fails without the seed's override (one ridge for both seeds) or
+// without the look-up (a second generation).
+TEST(RelaxationCache, EachSeedGeneratesItsOwnRidgeOnceAndReusesIt) {
+  make_scene();
+  const std::string env = cache_env("seeds");
+  const std::string shortrun = " --set time.duration=0.004 --set blocks.relax.max_time=0.05";
+  const auto a = hybridsim("run ridge_run.json -o s3a.h5 --set seed=3" + shortrun, env);
+  ASSERT_EQ(a.rc, 0) << a.err;
+  EXPECT_NE(a.err.find("generating the ridge of seed 3 into"), std::string::npos) << a.err;
+  const auto b = hybridsim("run ridge_run.json -o s3b.h5 --set seed=3" + shortrun, env);
+  ASSERT_EQ(b.rc, 0) << b.err;
+  EXPECT_EQ(b.err.find("generating the ridge"), std::string::npos) << b.err;
+  EXPECT_NE(b.err.find("the ridge of seed 3 from the cache"), std::string::npos) << b.err;
+  EXPECT_EQ(string_attribute(work_dir() / "s3b.h5", "/analysis/relaxation", "source"), "loaded");
+  expect_same_series(work_dir() / "s3a.h5", work_dir() / "s3b.h5");
+  const auto c = hybridsim("run ridge_run.json -o s4.h5 --set seed=4" + shortrun, env);
+  ASSERT_EQ(c.rc, 0) << c.err;
+  EXPECT_NE(c.err.find("generating the ridge of seed 4 into"), std::string::npos) << c.err;
+  std::vector<fs::path> ridges;
+  for (const auto& e : fs::directory_iterator(work_dir() / "seeds" / "ridge")) ridges.push_back(e.path());
+  ASSERT_EQ(ridges.size(), 2u);
+  EXPECT_NE(read_doubles(ridges[0], "/ridge/blocks/position"), read_doubles(ridges[1], "/ridge/blocks/position"));
+  EXPECT_EQ(entries("seeds"), 2u);  // one relaxation per seed
 }

@@ -553,7 +553,8 @@ TEST(RidgeRest, SigintDuringTheRelaxationEndsCleanlyWithNothingWritten) {
   fs::remove(work_dir() / "stopped.h5");
   // The run raises SIGINT to itself at the relaxation's 60th rigid step (HYBRIDSIM_TEST_SIGNAL,
   // docs/output.md); the speed limit 1e-9 m/s keeps the relaxation from ending before it.
-  const std::string cmd = "cd '" + work_dir().string() + "' && HYBRIDSIM_TEST_SIGNAL=INT:relax:60 exec '" HYBRIDSIM_EXE
+  const std::string cmd = "cd '" + work_dir().string() + "' && " + hs::testing::fresh_cache_env(work_dir()) +
+                          "HYBRIDSIM_TEST_SIGNAL=INT:relax:60 exec '" HYBRIDSIM_EXE
                           "' run rest.json -o stopped.h5 --set blocks.relax.speed=1e-9 > stopped.out 2> stopped.err";
   pid_t pid = -1;
   const char* argv[] = {"/bin/sh", "-c", cmd.c_str(), nullptr};

@@ -61,7 +61,8 @@ struct Child {
 Child start(const std::string& tag, const std::string& args, const std::string& signal_at,
             const std::string& launcher = "") {
   const fs::path d = work_dir();
-  const std::string cmd = "cd '" + d.string() + "' && HYBRIDSIM_TEST_SIGNAL=" + signal_at + " exec " + launcher +
+  const std::string cmd = "cd '" + d.string() + "' && " + hs::testing::fresh_cache_env(d) +
+                          "HYBRIDSIM_TEST_SIGNAL=" + signal_at + " exec " + launcher +
                           "'" HYBRIDSIM_EXE "' " + args + " > " + tag + ".out 2> " + tag + ".err";
   Child c;
   c.tag = tag;
