@@ -6,6 +6,7 @@
 //   hybridsim bench NAME                                      built-in benchmark (JSON line)
 //   hybridsim ridge scene.json [-o ridge.h5]                  build a ridge of rigid blocks
 //   hybridsim calibrate SCENE_OR_MATERIAL.json [--set ...]    virtual lab tests of the lattice
+//   hybridsim study STUDY.json [-j N] [--dry-run]             run a study's members, tables (docs/study.md)
 //   hybridsim --version
 //   mpirun -np N hybridsim scene.json ...                     the same run on N ranks (one output file)
 // Exit codes: 0 ok, 1 internal error, 2 bad input (hs::InputError), 3 simulation unstable
@@ -17,6 +18,7 @@
 #include "app/calibrate_command.h"
 #include "app/ridge_command.h"
 #include "app/run.h"
+#include "app/study_command.h"
 #include "common/error.h"
 #include "parallel/comm.h"
 
@@ -60,10 +62,11 @@ void add_common(CLI::App* a, hs::app::RunOptions& opt, bool with_output) {
 struct Commands {
   hs::app::RunOptions opt;
   CLI::App *run = nullptr, *check = nullptr, *iso = nullptr, *ridge = nullptr, *calibrate = nullptr,
-           *bench = nullptr;
+           *bench = nullptr, *study = nullptr;
   std::string ridge_scene, ridge_out;
   std::string bench_name;
   hs::app::BenchOptions bench_opt;
+  hs::app::StudyOptions study_opt;
 };
 
 void add_ridge(CLI::App& app, Commands& c) {
@@ -115,6 +118,18 @@ void add_bench(CLI::App& app, Commands& c) {
                     "(that ridge is in motion in the bench's world; docs/rigid.md)");
 }
 
+void add_study(CLI::App& app, Commands& c) {
+  c.study = app.add_subcommand("study", "run a study: a base scene's variants x seeds as members, resumably; "
+                                        "member table, summary with bootstrap 95 % intervals and the error-against-"
+                                        "core-hours front (docs/study.md)");
+  hs::app::StudyOptions& s = c.study_opt;
+  c.study->add_option("study", s.study_file, "study file (JSON, see docs/study.md)")->required();
+  c.study->add_option("-j,--jobs", s.jobs, "members run at once (default 1)")->check(CLI::PositiveNumber);
+  c.study->add_flag("--dry-run", s.dry_run, "list the members and their estimated core-hours; run nothing");
+  c.study->add_flag("--retry-failed", s.retry_failed, "run the members whose last run failed again");
+  c.study->add_flag("--no-plot", s.no_plot, "write the tables only, not front.png");
+}
+
 /// Every subcommand and option, bound to `c`.
 void add_commands(CLI::App& app, Commands& c) {
   app.set_version_flag("--version", std::string("hybridsim ") + HYBRIDSIM_VERSION);
@@ -131,6 +146,7 @@ void add_commands(CLI::App& app, Commands& c) {
   add_ridge(app, c);
   add_calibrate(app, c);
   add_bench(app, c);
+  add_study(app, c);
 }
 
 /// Runs the parsed command (exceptions go to main).
@@ -139,6 +155,14 @@ int dispatch(CLI::App& app, const Commands& c, const hs::par::Comm& world, std::
   const hs::app::RunOptions& opt = c.opt;
   if (*c.bench) return hs::app::run_benchmark(c.bench_name, out, std::cerr, world, c.bench_opt);
   // Ridge building is serial (a replicated rigid world gains nothing from more ranks): rank 0.
+  if (*c.study) {
+    if (world.parallel()) {
+      std::fprintf(stderr, "error: study: run `hybridsim study` without mpirun; \"mpi_ranks\" in the study file "
+                           "runs each member under mpirun\n");
+      return 2;
+    }
+    return hs::app::study_command(c.study_opt, out, progress);
+  }
   if (*c.ridge) return root ? hs::app::ridge_command(c.ridge_scene, c.ridge_out, std::cout, opt.ignore_memory_limit) : 0;
   if (opt.scene_path.empty()) {
     std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
