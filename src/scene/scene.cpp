@@ -21,7 +21,7 @@ namespace {
 // The one list of keys per object; docs/scene.schema.json mirrors it (checked by a test).
 const std::map<std::string, std::vector<std::string>>& schema_keys() {
   static const std::map<std::string, std::vector<std::string>> k = {
-      {"", {"name", "description", "output", "time", "material", "bonds", "water", "gravity", "ice", "walls",
+      {"", {"name", "description", "output", "seed", "time", "material", "bonds", "water", "gravity", "ice", "walls",
             "structure", "analysis", "stability", "parallel", "blocks", "ridge"}},
       {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval", "checkpoint_interval"}},
       {"/material",
@@ -112,6 +112,8 @@ void read_top(const JsonObject& root, Scene& s) {
   s.description = root.string("description", "", false, "free text");
   s.output = root.string("output", s.name + ".h5", false, "the output HDF5 file, e.g. \"run.h5\"");
   if (s.output.empty()) throw InputError("/output", "must not be empty; give a file name such as \"run.h5\"");
+  s.seed = root.integer<std::uint64_t>("seed", 0, JsonRange::non_negative(), "",
+                                       "a whole number >= 0, e.g. 7 (the ensemble member)");
 }
 
 }  // namespace

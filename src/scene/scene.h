@@ -235,6 +235,10 @@ struct Scene {
   std::string name;
   std::string description;
   std::string output;              ///< output file; default "<name>.h5"
+  /// The ensemble member: every random draw of the run (bonds.strength_spread) is a hash of this
+  /// seed and what is drawn for, so two runs with one seed are identical and two seeds are two
+  /// realisations. Absent = 0. A scene with no random option draws nothing and ignores it.
+  std::uint64_t seed = 0;
   TimeDef time;
   MaterialDef material;
   BondsDef bonds;

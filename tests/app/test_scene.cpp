@@ -175,6 +175,18 @@ TEST(Scene, OverridesSetFieldsParsedAsJsonElseString) {
   EXPECT_EQ(j["water"]["enabled"], false);
 }
 
+TEST(Scene, SeedIsAWholeNumberDefaultZeroAndSettable) {
+  EXPECT_EQ(scene::parse_scene(minimal()).seed, 0u);
+  json j = minimal();
+  scene::apply_override(j, "seed=7");
+  EXPECT_EQ(scene::parse_scene(j).seed, 7u);
+  scene::apply_override(j, "seed=18446744073709551615");  // 2^64 - 1, read exactly
+  EXPECT_EQ(scene::parse_scene(j).seed, 18446744073709551615ull);
+  expect_bad("/seed", -1, "/seed", "e.g. 7");
+  expect_bad("/seed", 1.5, "/seed", "e.g. 7");
+  expect_bad("/seed", "seven", "/seed", "number");
+}
+
 // ---------------------------------------------------------------- malformed scenes
 
 TEST(SceneErrors, UnknownKeysSuggestTheNearestOne) {
