@@ -368,8 +368,8 @@ int run_members(const StudyDef& d, const std::vector<Member>& members, std::vect
     state["members"][r.id] = entry_of(r, run_args(d, members[j.member]));
     save_state(state_path, state);
     if (r.status == "done") ++done;
-    std::fprintf(progress, "study: %-8s %s in %s wall, %s core-s (exit %d); %zu/%zu members done\n",
-                 r.status.c_str(), r.id.c_str(), duration_text(e.wall_seconds).c_str(), sci(e.core_seconds, 3).c_str(),
+    std::fprintf(progress, "study: %-8s %s in %s s wall, %s core-s (exit %d); %zu/%zu members done\n",
+                 r.status.c_str(), r.id.c_str(), sci(e.wall_seconds, 3).c_str(), sci(e.core_seconds, 3).c_str(),
                  e.exit_code, done, members.size());
   };
   return run_study_jobs(queue, opt.jobs, started, ended);
@@ -404,7 +404,7 @@ int study_command(const StudyOptions& opt, std::ostream& out, std::FILE* progres
                  sig == SIGINT ? "SIGINT" : "SIGTERM");
     return 128 + sig;
   }
-  return failed ? 1 : 0;
+  return done == records.size() ? 0 : 1;
 }
 
 }  // namespace hs::app

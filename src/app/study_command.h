@@ -16,8 +16,8 @@ struct StudyOptions {
   bool no_plot = false;       ///< --no-plot: write the tables only (no tools/plot_study.py)
 };
 
-/// Runs the study. Returns 0 when every member is done, 1 when some failed (the tables hold the
-/// others), 130 / 143 when SIGINT / SIGTERM stopped it (each running member was sent one SIGTERM
+/// Runs the study. Returns 0 when every member is done, 1 when some are not (failed, or stopped
+/// without the study being stopped; the tables hold the others), 130 / 143 when SIGINT / SIGTERM stopped it (each running member was sent one SIGTERM
 /// and left its checkpoint). Throws hs::InputError (exit 2) on a bad study file or member scene.
 int study_command(const StudyOptions& opt, std::ostream& out, std::FILE* progress);
 
