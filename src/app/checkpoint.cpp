@@ -145,6 +145,9 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
   else
     for (int k = 0; k < r.meta.ranks; ++k) r.all.push_back(io::read_checkpoint_rank(r.checkpoint_file, k));
   r.series = io::read_series_rows(r.run_file, r.meta.series_rows);
+  // The per-step load: one row per step up to the checkpoint's.
+  for (auto& rows : io::read_series_rows(r.run_file, r.meta.step, sim::kLoadPerStepGroup))
+    r.series.push_back(std::move(rows));
   return r;
 }
 
@@ -152,7 +155,7 @@ namespace {
 /// Float series added to the run file after checkpoints existed: a run file without one still
 /// restarts (its rows up to the checkpoint NaN). Any other missing series is refused.
 bool added_later(const std::string& path) {
-  static const char* const kAddedLater[] = {"/series/max_overlap_ratio"};
+  static const char* const kAddedLater[] = {"/series/max_overlap_ratio", "/load_per_step/time", "/load_per_step/force"};
   for (const char* p : kAddedLater)
     if (path == p) return true;
   return false;
@@ -196,7 +199,8 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
                              "the checkpoint are NaN\n", r.run_file.c_str(), path.c_str());
       const std::vector<double> nan(static_cast<std::size_t>(file.series_width(id)),
                                     std::numeric_limits<double>::quiet_NaN());
-      for (std::uint64_t row = 0; row < r.meta.series_rows; ++row) file.append(id, nan.data());
+      const bool per_step = path.rfind(std::string(sim::kLoadPerStepGroup) + "/", 0) == 0;
+      for (std::uint64_t row = 0; row < (per_step ? r.meta.step : r.meta.series_rows); ++row) file.append(id, nan.data());
       continue;
     }
     if (!src || src->width != file.series_width(id) || src->integer != file.series_is_integer(id))

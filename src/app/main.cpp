@@ -6,6 +6,7 @@
 //   hybridsim bench NAME                                      built-in benchmark (JSON line)
 //   hybridsim ridge scene.json [-o ridge.h5]                  build a ridge of rigid blocks
 //   hybridsim calibrate SCENE_OR_MATERIAL.json [--set ...]    virtual lab tests of the lattice
+//   hybridsim metrics RUN.h5 [--json]                         the run metrics (docs/metrics.md)
 //   hybridsim study STUDY.json [-j N] [--dry-run]             run a study's members, tables (docs/study.md)
 //   hybridsim --version
 //   mpirun -np N hybridsim scene.json ...                     the same run on N ranks (one output file)
@@ -16,6 +17,7 @@
 // prints it too). MPI is initialised only when an MPI launcher started the process.
 #include "app/bench.h"
 #include "app/calibrate_command.h"
+#include "app/metrics_command.h"
 #include "app/ridge_command.h"
 #include "app/run.h"
 #include "app/study_command.h"
@@ -62,12 +64,28 @@ void add_common(CLI::App* a, hs::app::RunOptions& opt, bool with_output) {
 struct Commands {
   hs::app::RunOptions opt;
   CLI::App *run = nullptr, *check = nullptr, *iso = nullptr, *ridge = nullptr, *calibrate = nullptr,
-           *bench = nullptr, *study = nullptr;
+           *bench = nullptr, *metrics = nullptr, *study = nullptr;
   std::string ridge_scene, ridge_out;
   std::string bench_name;
   hs::app::BenchOptions bench_opt;
+  hs::app::MetricsCommandOptions metrics_opt;
   hs::app::StudyOptions study_opt;
 };
+
+void add_metrics(CLI::App& app, Commands& c) {
+  c.metrics = app.add_subcommand("metrics", "print the run metrics of a run file (docs/metrics.md): stored in "
+                                            "/analysis/metrics, or computed from the file when absent");
+  hs::app::MetricsCommandOptions& m = c.metrics_opt;
+  c.metrics->add_option("run", m.run_file, "run file (HDF5) written by hybridsim run")->required();
+  c.metrics->add_flag("--json", m.json, "print JSON: {name: {value (null: no data), unit, description}}");
+  c.metrics->add_option("--windows", m.windows_file,
+                        "JSON file with an array of windows [{\"name\", \"t0\", \"t1\"} (s) or {\"name\", "
+                        "\"x0\", \"x1\"} (m, the pier's waterline front)]: computed from the file with them")
+      ->check(CLI::ExistingFile);
+  c.metrics->add_option("--moving-window", m.moving_window,
+                        "s, width of the moving mean of the peak load (default 1): computed from the file with it")
+      ->check(CLI::PositiveNumber);
+}
 
 void add_ridge(CLI::App& app, Commands& c) {
   c.ridge = app.add_subcommand("ridge", "build a ridge (rigid blocks rise and settle under the ice), "
@@ -146,6 +164,7 @@ void add_commands(CLI::App& app, Commands& c) {
   add_ridge(app, c);
   add_calibrate(app, c);
   add_bench(app, c);
+  add_metrics(app, c);
   add_study(app, c);
 }
 
@@ -164,6 +183,7 @@ int dispatch(CLI::App& app, const Commands& c, const hs::par::Comm& world, std::
     return hs::app::study_command(c.study_opt, out, progress);
   }
   if (*c.ridge) return root ? hs::app::ridge_command(c.ridge_scene, c.ridge_out, std::cout, opt.ignore_memory_limit) : 0;
+  if (*c.metrics) return root ? hs::app::metrics_command(c.metrics_opt, out) : 0;
   if (opt.scene_path.empty()) {
     std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
     return 2;

@@ -7,6 +7,7 @@
 #include "analysis/iso19906.h"
 #include "app/checkpoint.h"
 #include "app/output_path.h"
+#include "app/metrics_command.h"
 #include "app/progress.h"
 #include "app/run_summary.h"
 #include "app/stop_signal.h"
@@ -15,6 +16,7 @@
 #include "io/run_file.h"
 #include "parallel/comm.h"
 #include "scene/scene.h"
+#include "sim/metrics.h"
 #include "sim/recorder.h"
 #include "sim/report.h"
 #include "sim/simulation.h"
@@ -496,6 +498,11 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   comm.barrier();  // every rank's close has completed before rank 0 reopens the file
   if (comm.rank() == 0) sim::write_analysis(in.out_path, an);
   print_summary(out, s, sim, fig, an, RunEnd{start, end.wall, in.out_path, end.first}, comm);
+  if (comm.rank() == 0 && sim.has_structure()) {  // from the file: the one definition (docs/metrics.md)
+    const std::vector<analysis::Metric> metrics = sim::compute_run_metrics(in.out_path);
+    sim::write_run_metrics(in.out_path, metrics);
+    print_metrics_table(out, metrics);
+  }
   if (signals.received())
     std::fprintf(progress, "hybridsim: %s received after the last step: the run was complete and its report is written\n",
                  signal_name(signals.received()));

@@ -49,6 +49,11 @@ struct RunFigures {
 /// floating block's heave period (~1.5 s), so a block that bobs still reads its speed.
 inline constexpr double kRestWindow = 0.1;
 
+/// The group of the structure's per-step load (recorders.cpp, LoadPerStepRecorder): `time` (s) and
+/// `force` (N, n x 3), one row per DEM step whatever the output interval; the run metrics come
+/// from it (docs/metrics.md). A checkpoint at step k counts k of its rows.
+inline constexpr const char* kLoadPerStepGroup = "/load_per_step";
+
 class Recorder {
  public:
   virtual ~Recorder() = default;

@@ -222,6 +222,35 @@ class StructureLoadRecorder : public Recorder {
   double peak_h_ = 0.0, peak_h_time_ = 0.0, peak_step_ = 0.0, peak_step_time_ = 0.0;
 };
 
+// ---- /load_per_step/{time,force}: the structure's load of every DEM step (the value
+// StructureLoadRecorder averages into its rows), so that the run metrics do not depend on the
+// output interval. Due every step: one row of 4 doubles into RunFile's buffer, written at its
+// flushes; nothing kept between steps, so a checkpoint needs nothing from it (its rows up to the
+// checkpoint step are copied back by a restart). Under MPI the load is already reduced over the
+// ranks every step (Engine::reduce_loads; the blocks' share is replicated): every rank appends
+// the same rows and rank 0 writes them, as for /series.
+class LoadPerStepRecorder : public Recorder {
+ public:
+  void declare(io::RunFile& f) override {
+    const std::string g = kLoadPerStepGroup;
+    id_time_ = f.add_series(g + "/time", 1, "s", "time at the end of each DEM step (step 1 first)");
+    id_force_ = f.add_series(g + "/force", 3, "N",
+                             "force exerted by the ice on the structure during each DEM step (particles + blocks)");
+  }
+  bool due(std::uint64_t, const Schedule&) const override { return true; }
+  void write(Simulation& sim, io::RunFile& f) override {
+    if (sim.engine().step_count() == 0) return;  // the initial row: no step yet
+    sim.structure_load(load_);
+    const double t = sim.engine().time();
+    f.append(id_time_, &t);
+    f.append(id_force_, load_.force.data());
+  }
+
+ private:
+  StructureLoad load_;  ///< this step's, reused
+  int id_time_ = -1, id_force_ = -1;
+};
+
 // ---- /series/pile_height, /series/structure_position
 /// The largest value of a series and when it was reached; kept across a restart.
 struct RunningMax {
@@ -704,6 +733,7 @@ std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, con
   if (sim.schedule().snapshot_every) r.push_back(std::make_unique<SnapshotRecorder>(comm));  // last: after the row
   // After the snapshots: a checkpoint keys recorders by position, so the older ones keep theirs.
   r.push_back(std::make_unique<OverlapRecorder>(comm));
+  if (st) r.push_back(std::make_unique<LoadPerStepRecorder>());
   return r;
 }
 
