@@ -5,9 +5,11 @@
 #include "app/text.h"
 #include "common/error.h"
 #include "git_commit.h"
-#include "io/study_files.h"
+#include "io/run_file_read.h"
+#include "io/table_file.h"
 #include "json/reader.h"
 #include "scene/scene.h"
+#include "sim/metrics.h"
 #include "study/study.h"
 #include "study/summary.h"
 #include "study/table.h"
@@ -190,23 +192,34 @@ StudyJob member_job(const StudyDef& d, std::size_t index, const Member& m, const
   return job;
 }
 
-/// Stand-in metric until run files carry /analysis/metrics: the peak over the output rows of the
-/// horizontal magnitude of /series/force. Used only for a run file without that group.
-std::vector<study::Quantity> stand_in_metrics(const std::string& run_file) {
-  const io::SeriesValues f = io::read_series_values(run_file, "/series/force");
-  if (f.width != 3 || f.values.empty()) return {};
+/// Stand-in metric for a run file without /analysis/metrics and /load_per_step (written before the
+/// run metrics existed): the peak over the output rows of the horizontal magnitude of /series/force.
+std::vector<study::Quantity> stand_in_metrics(const io::RunFileReader& f) {
+  if (!f.has("/series/force") || f.width("/series/force") != 3) return {};
+  const std::vector<double> v = f.doubles("/series/force");
   double peak = 0.0;
-  for (std::size_t i = 0; i + 2 < f.values.size(); i += 3) peak = std::max(peak, std::hypot(f.values[i], f.values[i + 1]));
+  for (std::size_t i = 0; i + 2 < v.size(); i += 3) peak = std::max(peak, std::hypot(v[i], v[i + 1]));
   return {{"peak_fh_rows", "N", "peak of the horizontal magnitude of /series/force over the output rows", peak}};
 }
 
-/// A finished member's figures from its run file: version, peak particles, metrics.
-void add_run_facts(MemberRecord& r, const fs::path& file) {
-  const io::RunFileFacts f = io::read_run_facts(file.string());
-  r.program_version = f.program_version;
-  r.peak_particles = f.peak_particles;
-  for (const io::RunMetric& m : f.metrics) r.metrics.push_back({m.name, m.unit, m.description, m.value});
-  if (!f.has_metrics) r.metrics = stand_in_metrics(file.string());
+/// A finished member's figures from its run file: version, peak particles and metrics (those the
+/// file holds; with the study's windows, computed from the file with them).
+void add_run_facts(MemberRecord& r, const fs::path& file, const std::vector<sim::MetricWindow>& windows) {
+  const io::RunFileReader f(file.string());
+  r.program_version = f.string_attribute("/", "program_version").value_or("");
+  if (f.has("/series/particles")) {
+    const std::vector<double> p = f.doubles("/series/particles");
+    if (!p.empty()) r.peak_particles = *std::max_element(p.begin(), p.end());
+  }
+  const bool stored = f.has(sim::kMetricsGroup);
+  if (!stored && !f.has("/load_per_step")) {
+    r.metrics = stand_in_metrics(f);
+    return;
+  }
+  const std::vector<analysis::Metric> m = windows.empty() && stored
+                                              ? sim::read_run_metrics(file.string())
+                                              : sim::compute_run_metrics(file.string(), {.windows = windows});
+  for (const analysis::Metric& x : m) r.metrics.push_back({x.name, x.unit, x.description, x.value});
 }
 
 // ---------------------------------------------------------------- outputs
@@ -229,12 +242,20 @@ void write_table_h5(const fs::path& path, const std::vector<study::Column>& colu
   w.close();
 }
 
-/// The metric the front plots: the study's primary_metric, else the first metric in name order.
-std::string front_metric(const StudyDef& d, const std::vector<study::SummaryRow>& rows) {
-  if (!d.primary_metric.empty()) return d.primary_metric;
+/// The metric the front plots: the study's primary_metric, else (or when no member has it, with a
+/// warning naming the metrics there are) the first metric in name order.
+std::string front_metric(const StudyDef& d, const std::vector<study::SummaryRow>& rows, std::FILE* progress) {
+  std::vector<std::string> names;
   for (const study::SummaryRow& r : rows)
-    if (r.quantity != "core_hours") return r.quantity;
-  return "";
+    if (r.quantity != "core_hours" && std::find(names.begin(), names.end(), r.quantity) == names.end())
+      names.push_back(r.quantity);
+  if (names.empty() || d.primary_metric.empty()) return names.empty() ? "" : names.front();
+  if (std::find(names.begin(), names.end(), d.primary_metric) != names.end()) return d.primary_metric;
+  std::string all;
+  for (const std::string& n : names) all += (all.empty() ? "" : ", ") + n;
+  std::fprintf(progress, "warning: /primary_metric: no member has the metric \"%s\"; the front plots \"%s\". The "
+                         "metrics are: %s\n", d.primary_metric.c_str(), names.front().c_str(), all.c_str());
+  return names.front();
 }
 
 /// front.png by tools/plot_study.py when python3 with matplotlib is there, else the command to run.
@@ -254,10 +275,12 @@ void draw_front(const StudyDef& d, const std::string& metric, std::FILE* progres
 
 /// table.csv, table.h5, summary.csv, summary.md and front.png from the members' records.
 void write_outputs(const StudyDef& d, std::vector<MemberRecord> records, bool plot, std::FILE* progress) {
+  const std::vector<sim::MetricWindow> windows =
+      d.windows.is_null() ? std::vector<sim::MetricWindow>{} : sim::metric_windows_from_json(d.windows, "/windows");
   std::vector<study::MemberFigures> figures;
   for (MemberRecord& r : records) {
     if (r.status != "done") continue;
-    add_run_facts(r, d.output_dir / r.output);
+    add_run_facts(r, d.output_dir / r.output, windows);
     study::MemberFigures f{r.variant, r.metrics};
     f.quantities.push_back({"core_hours", "h", "core-hours of the member", r.core_seconds / 3600.0});
     figures.push_back(std::move(f));
@@ -268,7 +291,7 @@ void write_outputs(const StudyDef& d, std::vector<MemberRecord> records, bool pl
   std::vector<std::string> variants;
   for (const study::Variant& v : d.variants) variants.push_back(v.name);
   const auto rows = study::summarise(figures, variants, d.reference);
-  const std::string metric = front_metric(d, rows);
+  const std::string metric = front_metric(d, rows, progress);
   write_text(d.output_dir / "summary.csv", study::summary_csv(rows));
   write_text(d.output_dir / "summary.md", study::summary_markdown(rows, d.name, d.reference, metric));
   std::fprintf(progress, "study: table: %s (+ table.h5), summary: %s (+ summary.md)\n",
@@ -381,6 +404,7 @@ int study_command(const StudyOptions& opt, std::ostream& out, std::FILE* progres
   const StudyDef d = study::load_study_file(opt.study_file);
   const std::vector<Member> members = d.members();
   check_member_scenes(d, members);
+  if (!d.windows.is_null()) (void)sim::metric_windows_from_json(d.windows, "/windows");
   const fs::path state_path = d.output_dir / kStateFile;
   if (opt.dry_run) return dry_run(d, members, records_of(d, members, load_state(state_path), state_path), out);
   std::error_code ec;

@@ -14,7 +14,7 @@ namespace {
 
 const std::vector<std::string> kKeys = {"description", "base",   "seeds",      "set",
                                         "variants",    "grid",   "reference",  "primary_metric",
-                                        "mpi_ranks",   "mpirun", "output_dir"};
+                                        "mpi_ranks",   "mpirun", "output_dir", "windows"};
 
 /// A variant name is a directory name: letters, digits and "_-.=,+" (no "/", not "." or "..").
 void check_name(const std::string& name, const std::string& ptr) {
@@ -171,6 +171,7 @@ StudyDef parse_study(const nlohmann::json& doc, const fs::path& study_file) {
   d.mpi_ranks = o.integer<int>("mpi_ranks", 1, {1, 100000}, "", "the MPI ranks of each member, e.g. 4");
   d.mpirun = o.string("mpirun", "mpirun");
   d.output_dir = dir / o.string("output_dir", d.name);
+  if (o.has("windows")) d.windows = o.raw("windows");
   return d;
 }
 

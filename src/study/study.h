@@ -44,6 +44,9 @@ struct StudyDef {
   std::string primary_metric;             ///< "primary_metric": the front's metric, "" = the first
   int mpi_ranks = 1;                      ///< "mpi_ranks": > 1 runs each member under mpirun -np K
   std::string mpirun = "mpirun";          ///< "mpirun": the launcher used when mpi_ranks > 1
+  /// "windows": metric windows (docs/metrics.md, "Windows") the members' metrics are computed
+  /// with, checked by sim::metric_windows_from_json; null: the metrics the run files hold.
+  nlohmann::json windows;
 
   /// Every member, variant by variant (name order), seeds in the order given.
   std::vector<Member> members() const;

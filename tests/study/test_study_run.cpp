@@ -1,6 +1,6 @@
 // `hybridsim study` end to end through the binary (docs/study.md): a 2-variant x 2-seed study of a
 // 0.1 s scene (804 particles, ~0.3 s a member) runs, resumes a member stopped by SIGTERM from its
-// checkpoint to the series of an uninterrupted run bit for bit, writes the documented tables, and
+// checkpoint to the series and per-step load of an uninterrupted run bit for bit, writes the documented tables, and
 // a second invocation runs nothing. Bad study files are refused with exit 2.
 #include <gtest/gtest.h>
 
@@ -39,14 +39,16 @@ void write_scene() {
   })");
 }
 
-/// Every /series dataset of a and b bit-identical, and the same set of them.
+/// Every /series and /load_per_step dataset of a and b bit-identical, and the same set of them.
 void expect_same_series(const fs::path& a, const fs::path& b) {
-  const auto sa = hs::testing::datasets(a, "/series"), sb = hs::testing::datasets(b, "/series");
-  ASSERT_FALSE(sa.empty()) << a;
-  ASSERT_EQ(sa.size(), sb.size());
-  for (const auto& [name, bytes] : sa) {
-    ASSERT_TRUE(sb.count(name)) << name;
-    EXPECT_TRUE(sb.at(name) == bytes) << "/series/" << name << " differs between " << a << " and " << b;
+  for (const std::string group : {"/series", "/load_per_step"}) {
+    const auto sa = hs::testing::datasets(a, group), sb = hs::testing::datasets(b, group);
+    ASSERT_FALSE(sa.empty()) << a << " " << group;
+    ASSERT_EQ(sa.size(), sb.size()) << group;
+    for (const auto& [name, bytes] : sa) {
+      ASSERT_TRUE(sb.count(name)) << name;
+      EXPECT_TRUE(sb.at(name) == bytes) << group << "/" << name << " differs between " << a << " and " << b;
+    }
   }
 }
 
@@ -96,7 +98,8 @@ TEST(StudyRun, RunsResumesAStoppedMemberBitIdenticallyAndRunsNothingTheSecondTim
       "member,variant,seed,status,exit_code,output,program_version,commit,runs,wall_seconds,core_seconds,core_hours,"
       "max_rss_mib,peak_particles,";
   EXPECT_EQ(table.rfind(record_columns, 0), 0u) << table;
-  EXPECT_GT(table.find('\n'), record_columns.size()) << "at least one metric column\n" << table;
+  EXPECT_NE(table.substr(0, table.find('\n')).find(",load_h_peak_moving_mean,"), std::string::npos)
+      << "the run metrics (/analysis/metrics) as columns\n" << table;
   EXPECT_EQ(count(table, "\n"), 5) << table;
   EXPECT_EQ(count(table, ",done,0,"), 4) << table;
   EXPECT_NE(table.find("\nv1.2/seed2,v1.2,2,done,0,v1.2/seed2.h5,"), std::string::npos) << table;
