@@ -1,6 +1,7 @@
 // Reading run files back in the CLI tests: one helper instead of a copy per test file.
 #pragma once
 
+#include <gtest/gtest.h>
 #include <hdf5.h>
 
 #include <filesystem>
@@ -60,6 +61,20 @@ inline std::map<std::string, std::string> datasets(const std::filesystem::path& 
   }
   H5Fclose(f);
   return out;
+}
+
+/// Every /series dataset and every /load_per_step dataset (the structure's load of every step,
+/// the run metrics' source) of a and b bit-identical, and the same set of them.
+inline void expect_same_series(const std::filesystem::path& a, const std::filesystem::path& b) {
+  for (const std::string group : {"/series", "/load_per_step"}) {
+    const auto sa = datasets(a, group), sb = datasets(b, group);
+    ASSERT_FALSE(sa.empty()) << a << " " << group;
+    ASSERT_EQ(sa.size(), sb.size()) << group;
+    for (const auto& [name, bytes] : sa) {
+      ASSERT_TRUE(sb.count(name)) << name;
+      EXPECT_TRUE(sb.at(name) == bytes) << group << "/" << name << " differs between " << a << " and " << b;
+    }
+  }
 }
 
 }  // namespace hs::testing

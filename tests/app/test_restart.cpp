@@ -82,19 +82,7 @@ bool is_timing(const std::string& key) {
   return key.find("parallel_stats") != std::string::npos || key.find("report_doubles") != std::string::npos;
 }
 
-/// Every /series dataset and every /load_per_step dataset (the structure's load of every step,
-/// the run metrics' source) of a and b bit-identical, and the same set of them.
-void expect_same_series(const fs::path& a, const fs::path& b) {
-  for (const std::string group : {"/series", "/load_per_step"}) {
-    const auto sa = datasets(a, group), sb = datasets(b, group);
-    ASSERT_FALSE(sa.empty()) << a << " " << group;
-    ASSERT_EQ(sa.size(), sb.size()) << group;
-    for (const auto& [name, bytes] : sa) {
-      ASSERT_TRUE(sb.count(name)) << name;
-      EXPECT_TRUE(sb.at(name) == bytes) << group << "/" << name << " differs between " << a << " and " << b;
-    }
-  }
-}
+using hs::testing::expect_same_series;
 
 /// The two checkpoints hold the same step and every state entry of every rank byte for byte.
 void expect_same_checkpoint(const fs::path& a, const fs::path& b, int ranks) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 namespace fs = std::filesystem;
+using hs::testing::expect_same_series;
 using hs::testing::slurp;
 
 namespace {
@@ -37,19 +38,6 @@ void write_scene() {
                "shaft_diameter": 1.5, "shaft_bottom_z": -3.0, "segments": 32},
       "position": [-1.5, 0, 0], "velocity": [1.0, 0, 0]}
   })");
-}
-
-/// Every /series and /load_per_step dataset of a and b bit-identical, and the same set of them.
-void expect_same_series(const fs::path& a, const fs::path& b) {
-  for (const std::string group : {"/series", "/load_per_step"}) {
-    const auto sa = hs::testing::datasets(a, group), sb = hs::testing::datasets(b, group);
-    ASSERT_FALSE(sa.empty()) << a << " " << group;
-    ASSERT_EQ(sa.size(), sb.size()) << group;
-    for (const auto& [name, bytes] : sa) {
-      ASSERT_TRUE(sb.count(name)) << name;
-      EXPECT_TRUE(sb.at(name) == bytes) << group << "/" << name << " differs between " << a << " and " << b;
-    }
-  }
 }
 
 /// Modification time in nanoseconds.
