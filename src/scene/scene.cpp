@@ -30,7 +30,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/bonds",
        {"tensile_strength", "shear_strength", "damping_ratio", "radius_ratio", "freeze_tensile_strength",
         "freeze_shear_strength", "freeze_strength_fraction", "compressive_strength_ratio",
-        "crushed_contact", "crushed_set_depth"}},
+        "crushed_contact", "crushed_set_depth", "strength_spread"}},
       {"/water", {"enabled", "level", "density", "linear_drag_per_area", "drag_coefficient", "current", "linear_drag"}},
       {"/ice", {"type", "thickness", "length", "width", "origin", "consolidated_layer"}},
       {"/ice/consolidated_layer", {"thickness", "width", "center_x"}},
@@ -216,6 +216,9 @@ void read_bonds(const JsonObject& root, Scene& s) {
   b.crushed_set_depth = o.number("crushed_set_depth", b.crushed_set_depth, {0.0, 1.0, true, true}, "",
                                  "overlap / smaller radius beyond which a broken bond's contact keeps a permanent "
                                  "set, e.g. 0.25");
+  b.strength_spread = o.number("strength_spread", b.strength_spread, Range::non_negative(), "",
+                               "relative standard deviation of each lattice bond's strengths (lognormal, mean "
+                               "the bond strength), e.g. 0.2; 0 = every bond alike");
   b.strength_given = o.has("tensile_strength") || o.has("shear_strength");
   // "calibrated" derives the bond strength from material.flexural_strength: both at once would be
   // two answers to one question.

@@ -68,6 +68,7 @@ bonded::EngineDef engine_def(const scene::Scene& s, const CalibratedIce& ci) {
   d.limits.max_overlap_ratio = s.stability.max_overlap_ratio;
   d.crushed_set = b.crushed_contact == "set";
   d.crushed_set_depth = b.crushed_set_depth;
+  d.lattice_strength_spread = {b.strength_spread, s.seed};
   return d;
 }
 
