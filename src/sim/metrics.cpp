@@ -139,8 +139,28 @@ double last_value(const io::RunFileReader& f, const std::string& dataset) {
   return v.empty() ? kNaN : v.back();
 }
 
+/// The largest finite value of the dataset; NaN when it is missing or has none.
+double max_value(const io::RunFileReader& f, const std::string& dataset) {
+  double best = kNaN;
+  if (!f.has(dataset)) return best;
+  for (double v : f.doubles(dataset))
+    if (std::isfinite(v) && !(v <= best)) best = v;
+  return best;
+}
+
+void pile_metrics(std::vector<Metric>& m, const io::RunFileReader& f) {
+  const std::string g = std::string(kPileClockGroup) + "/";
+  const std::string clock = " (" + g + ", every " + json_fmt(kPileClock) + " s of simulated time)";
+  m.push_back({"pile_height_mean_max", max_value(f, g + "height_mean"), "m",
+               "peak of the ISO-consistent pile height (mean crest over the waterline width)" + clock +
+                   "; NaN without a pier"});
+  m.push_back({"pile_height_top_max", max_value(f, g + "height_top"), "m",
+               "peak of the highest ice above the waterline over the structure's upstream half" + clock});
+}
+
 void state_metrics(std::vector<Metric>& m, const io::RunFileReader& f) {
-  // The last row of /series is the last step's whatever the output interval: these are state at the end.
+  pile_metrics(m, f);
+  // The last row of /series is the last step's whatever the output interval: state at the end.
   m.push_back({"pile_height_mean_end", last_value(f, "/series/pile_height_mean"), "m",
                "ISO-consistent pile height (mean crest over the waterline width, /series/pile_height_mean) at the "
                "last step; NaN without a pier"});

@@ -63,7 +63,8 @@ TEST(RunMetrics, IndependentOfOutputInterval) {
   // in the same order; the last row of /series is the last step's at both intervals).
   expect_same_metrics(a, b, "between output intervals 0.01 and 0.05 s");
   for (const char* name : {"load_h_mean_run", "load_v_mean_run", "load_h_mean_level_ice", "load_h_impulse",
-                           "load_h_p95", "load_h_peak_moving_mean", "pile_height_mean_end", "pile_height_top_end"}) {
+                           "load_h_p95", "load_h_peak_moving_mean", "pile_height_mean_max", "pile_height_top_max",
+                           "pile_height_mean_end", "pile_height_top_end"}) {
     ASSERT_TRUE(a.contains(name)) << name;
     EXPECT_TRUE(a[name]["value"].is_number()) << name << " has no data";
     EXPECT_FALSE(a[name]["unit"].get<std::string>().empty()) << name;
