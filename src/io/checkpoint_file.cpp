@@ -223,7 +223,7 @@ StateArchive read_checkpoint_rank(const std::string& path, int rank) {
   return a;
 }
 
-std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows, const std::string& group) {
+std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t all_rows, const std::string& group) {
   if (!fs::exists(path)) throw InputError("--restart", "no run file '" + path + "'");
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   const hid_t fid = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
@@ -247,6 +247,7 @@ std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t 
     if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
       throw InputError("--restart", "series '" + s.path + "' in '" + path + "' is not 1-D or 2-D");
     s.width = rank == 2 ? static_cast<int>(dims[1]) : 1;
+    const std::uint64_t rows = all_rows == kAllRows ? dims[0] : all_rows;
     if (dims[0] < rows)
       throw InputError("--restart", "the run file '" + path + "' holds " + std::to_string(dims[0]) + " rows of " +
                                         s.path + ", the checkpoint needs " + std::to_string(rows) +

@@ -114,6 +114,7 @@ void RunFileEditor::add_scalar(const std::string& path, double value, const std:
            H5Dclose);
   m.check(H5Dwrite(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value), "H5Dwrite", path);
   m.string_attribute(d.get(), path, "unit", unit);
+  m.string_attribute(d.get(), path, "units", unit);  // as every other dataset of the file
   m.string_attribute(d.get(), path, "description", description);
 }
 

@@ -22,6 +22,11 @@ struct RunFileReader::Impl {
   bool attribute_exists(const std::string& object, const std::string& name) const {
     return H5Aexists_by_name(file.get(), object.c_str(), name.c_str(), H5P_DEFAULT) > 0;
   }
+  Handle open_attribute(const std::string& object, const std::string& name) const {
+    return Handle(check_id(H5Aopen_by_name(file.get(), object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT),
+                           "H5Aopen_by_name", object + "@" + name),
+                  H5Aclose);
+  }
 };
 
 RunFileReader::RunFileReader(const std::string& path) : impl_(std::make_unique<Impl>()) {
@@ -65,9 +70,7 @@ std::optional<std::string> RunFileReader::string_attribute(const std::string& ob
   const Impl& m = *impl_;
   if (!has(object) || !m.attribute_exists(object, name)) return std::nullopt;
   const std::string where = object + "@" + name;
-  Handle a(m.check_id(H5Aopen_by_name(m.file.get(), object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT),
-                      "H5Aopen_by_name", where),
-           H5Aclose);
+  const Handle a = m.open_attribute(object, name);
   Handle type(m.check_id(H5Aget_type(a.get()), "H5Aget_type", where), H5Tclose);
   if (H5Tget_class(type.get()) != H5T_STRING) return std::nullopt;
   if (H5Tis_variable_str(type.get()) > 0) {
@@ -87,12 +90,9 @@ std::optional<std::string> RunFileReader::string_attribute(const std::string& ob
 std::optional<double> RunFileReader::double_attribute(const std::string& object, const std::string& name) const {
   const Impl& m = *impl_;
   if (!has(object) || !m.attribute_exists(object, name)) return std::nullopt;
-  const std::string where = object + "@" + name;
-  Handle a(m.check_id(H5Aopen_by_name(m.file.get(), object.c_str(), name.c_str(), H5P_DEFAULT, H5P_DEFAULT),
-                      "H5Aopen_by_name", where),
-           H5Aclose);
+  const Handle a = m.open_attribute(object, name);
   double v = 0.0;
-  m.check(H5Aread(a.get(), H5T_NATIVE_DOUBLE, &v), "H5Aread", where);
+  m.check(H5Aread(a.get(), H5T_NATIVE_DOUBLE, &v), "H5Aread", object + "@" + name);
   return v;
 }
 

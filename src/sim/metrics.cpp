@@ -11,6 +11,7 @@
 #include <cmath>
 #include <limits>
 #include <optional>
+#include <utility>
 
 namespace hs::sim {
 
@@ -50,17 +51,36 @@ LoadHistory read_load(const io::RunFileReader& f, const std::string& path) {
   return h;
 }
 
-/// The scene's penetration windows (docs/metrics.md, "Windows"): the range of the pier's waterline
-/// front x(t) = x_axis(t_start) + D_w / 2 + v_x (t - t_start) over the level ice and the
-/// consolidated layer. None when the structure is not a parametric pier moving along +x.
+/// The scene's penetration windows (docs/metrics.md, "Windows"): the steps in which the pier's
+/// front at a feature's depth, x_f(t) = x_axis(t_0) + r_f + v_x (t - t_0), lies over the feature
+/// (the level ice, the consolidated layer). r_f: the widest pier radius over the feature's
+/// floating thickness (from h rho_i / rho_w below the water line to the rest above it), where the
+/// sheet meets the cone first. None when the structure is not a parametric pier moving along +x.
 struct SceneWindows {
   std::vector<TimeWindow> windows;
   std::vector<std::string> where;  ///< each window's x-range in words
-  double front = kNaN, speed = kNaN;  ///< m at t_start, m/s
+  double front = kNaN, speed = kNaN;  ///< m at t_start (the level ice's front), m/s
 };
 
 double number_at(const nlohmann::json& j, const nlohmann::json::json_pointer& p, double fallback) {
   return j.contains(p) && j.at(p).is_number() ? j.at(p).get<double>() : fallback;
+}
+
+/// The widest radius of the pier over the floating thickness h of ice (m).
+double front_radius(const nlohmann::json& j, double h) {
+  using P = nlohmann::json::json_pointer;
+  mesh::PierParams pp;
+  for (auto [key, field] : {std::pair{"waterline_diameter", &pp.waterline_diameter}, {"cone_angle_deg", &pp.cone_angle_deg},
+                            {"cone_top_z", &pp.cone_top_z}, {"cone_bottom_z", &pp.cone_bottom_z},
+                            {"neck_height", &pp.neck_height}, {"shaft_diameter", &pp.shaft_diameter},
+                            {"shaft_bottom_z", &pp.shaft_bottom_z}})
+    *field = number_at(j, P(std::string("/structure/pier/") + key), *field);
+  const double level = number_at(j, P("/water/level"), 0.0);
+  const double draft = h * number_at(j, P("/material/density"), 920.0) / number_at(j, P("/water/density"), 1025.0);
+  const double lo = level - draft, hi = lo + h;
+  double r = std::max(mesh::pier_radius_at(pp, lo), mesh::pier_radius_at(pp, hi));
+  if (pp.cone_bottom_z >= lo && pp.cone_bottom_z <= hi) r = std::max(r, mesh::pier_radius_at(pp, pp.cone_bottom_z));
+  return r;
 }
 
 SceneWindows scene_windows(const io::RunFileReader& f, const LoadHistory& h) {
@@ -75,19 +95,22 @@ SceneWindows scene_windows(const io::RunFileReader& f, const LoadHistory& h) {
   if (type != "pier" || !(vx > 0.0) || std::abs(vy) > 1e-9 * vx) return out;
   double axis_x = number_at(j, P("/structure/position/0"), 0.0);
   if (f.has("/series/structure_position")) axis_x = f.doubles("/series/structure_position").at(0);
-  out.front = axis_x + 0.5 * number_at(j, P("/structure/pier/waterline_diameter"), mesh::PierParams{}.waterline_diameter);
+  out.front = axis_x + front_radius(j, number_at(j, P("/ice/thickness"), 0.0));
   out.speed = vx;
   const double ice0 = number_at(j, P("/ice/origin/0"), 0.0), ice1 = ice0 + number_at(j, P("/ice/length"), 0.0);
   const bool cl = j["ice"].contains("consolidated_layer");
   const double cx = number_at(j, P("/ice/consolidated_layer/center_x"), 0.0);
   const double cw = number_at(j, P("/ice/consolidated_layer/width"), 0.0);
   const double level_end = cl ? std::max(ice0, cx - 0.5 * cw) : ice1;
-  auto add = [&](const std::string& name, double x0, double x1) {
-    out.windows.push_back(analysis::penetration_window(name, x0, x1, out.front, out.speed, h.t_start));
-    out.where.push_back("front between x = " + json_fmt(x0) + " and " + json_fmt(x1) + " m");
+  auto add = [&](const std::string& name, double x0, double x1, double front) {
+    out.windows.push_back(analysis::penetration_window(name, x0, x1, front, out.speed, h.t_start));
+    out.where.push_back("front " + json_fmt(front - axis_x) + " m ahead of the axis between x = " + json_fmt(x0) +
+                        " and " + json_fmt(x1) + " m");
   };
-  add("level_ice", ice0, level_end);
-  if (cl) add("consolidated_layer", cx - 0.5 * cw, cx + 0.5 * cw);
+  add("level_ice", ice0, level_end, out.front);
+  if (cl)
+    add("consolidated_layer", cx - 0.5 * cw, cx + 0.5 * cw,
+        axis_x + front_radius(j, number_at(j, P("/ice/consolidated_layer/thickness"), 0.0)));
   return out;
 }
 
@@ -99,7 +122,7 @@ void window_metrics(std::vector<Metric>& m, const LoadHistory& h, const SceneWin
     TimeWindow w;
   };
   const double inf = std::numeric_limits<double>::infinity();
-  std::vector<Named> list{{"run", "every step", {"run", -inf, inf}},
+  std::vector<Named> list{{"run", "the whole run", {"run", -inf, inf}},
                           {"level_ice", "not defined by the scene", {"level_ice", 0.0, -1.0}},
                           {"consolidated_layer", "not defined by the scene", {"consolidated_layer", 0.0, -1.0}},
                           {"keel", "not defined by the scene: a study gives it", {"keel", 0.0, -1.0}}};
@@ -116,7 +139,7 @@ void window_metrics(std::vector<Metric>& m, const LoadHistory& h, const SceneWin
     if (!g.by_position) {
       put({g.name, "given", {g.name, g.from, g.to}});
     } else if (std::isfinite(sw.speed)) {
-      put({g.name, "given: front between x = " + json_fmt(g.from) + " and " + json_fmt(g.to) + " m",
+      put({g.name, "given: the level ice's front between x = " + json_fmt(g.from) + " and " + json_fmt(g.to) + " m",
            analysis::penetration_window(g.name, g.from, g.to, sw.front, sw.speed, h.t_start)});
     } else {
       put({g.name, "given by x, but the structure is not a pier moving along +x", {g.name, 0.0, -1.0}});
@@ -139,8 +162,28 @@ double last_value(const io::RunFileReader& f, const std::string& dataset) {
   return v.empty() ? kNaN : v.back();
 }
 
+/// The largest finite value of the dataset; NaN when it is missing or has none.
+double max_value(const io::RunFileReader& f, const std::string& dataset) {
+  double best = kNaN;
+  if (!f.has(dataset)) return best;
+  for (double v : f.doubles(dataset))
+    if (std::isfinite(v) && !(v <= best)) best = v;
+  return best;
+}
+
+void pile_metrics(std::vector<Metric>& m, const io::RunFileReader& f) {
+  const std::string g = std::string(kPileClockGroup) + "/";
+  const std::string clock = " (" + g + ", every " + json_fmt(kPileClock) + " s of simulated time)";
+  m.push_back({"pile_height_mean_max", max_value(f, g + "height_mean"), "m",
+               "peak of the ISO-consistent pile height (mean crest over the waterline width)" + clock +
+                   "; NaN without a pier"});
+  m.push_back({"pile_height_top_max", max_value(f, g + "height_top"), "m",
+               "peak of the highest ice above the waterline over the structure's upstream half" + clock});
+}
+
 void state_metrics(std::vector<Metric>& m, const io::RunFileReader& f) {
-  // The last row of /series is the last step's whatever the output interval: these are state at the end.
+  pile_metrics(m, f);
+  // The last row of /series is the last step's whatever the output interval: state at the end.
   m.push_back({"pile_height_mean_end", last_value(f, "/series/pile_height_mean"), "m",
                "ISO-consistent pile height (mean crest over the waterline width, /series/pile_height_mean) at the "
                "last step; NaN without a pier"});

@@ -63,7 +63,8 @@ TEST(RunMetrics, IndependentOfOutputInterval) {
   // in the same order; the last row of /series is the last step's at both intervals).
   expect_same_metrics(a, b, "between output intervals 0.01 and 0.05 s");
   for (const char* name : {"load_h_mean_run", "load_v_mean_run", "load_h_mean_level_ice", "load_h_impulse",
-                           "load_h_p95", "load_h_peak_moving_mean", "pile_height_mean_end", "pile_height_top_end"}) {
+                           "load_h_p95", "load_h_peak_moving_mean", "pile_height_mean_max", "pile_height_top_max",
+                           "pile_height_mean_end", "pile_height_top_end"}) {
     ASSERT_TRUE(a.contains(name)) << name;
     EXPECT_TRUE(a[name]["value"].is_number()) << name << " has no data";
     EXPECT_FALSE(a[name]["unit"].get<std::string>().empty()) << name;
@@ -97,12 +98,16 @@ TEST(RunMetrics, StoppedRunAndItsRestart) {
 TEST(RunMetrics, WindowsAndBadInput) {
   if (!fs::exists(work_dir() / "i01.h5"))
     ASSERT_EQ(hybridsim("run " + kScene + " -o i01.h5 --set time.output_interval=0.01").rc, 0);
-  // The front x(t) = -0.5 + t m: over x in [0.2, 0.7] m exactly the steps of 0.7 s < t <= 1.2 s.
-  std::ofstream(work_dir() / "w.json") << R"([{"name": "keel", "x0": 0.2, "x1": 0.7},
-                                               {"name": "late", "t0": 0.7, "t1": 1.2}])";
+  // The level ice's front: the pier's radius at the sheet's underside (0.75 m of ice floating at
+  // 920 / 1025), 1 + 0.6732 / tan(52 deg) = 1.526 m ahead of the axis (x = -1.5 m at t = 0, 1 m/s):
+  // x_f(t) = 0.0259 + t m, so x in [x_f(0.7), x_f(1.2)] holds the steps of 0.7 s < t <= 1.2 s.
+  const double front0 = -1.5 + 1.0 + 0.75 * 920.0 / 1025.0 / std::tan(52.0 * M_PI / 180.0);
+  const json w = {{{"name", "keel"}, {"x0", front0 + 0.7}, {"x1", front0 + 1.2}},
+                  {{"name", "late"}, {"t0", 0.7}, {"t1", 1.2}}};
+  std::ofstream(work_dir() / "w.json") << w.dump();
   const json m = metrics_json("i01.h5", " --windows w.json");
   ASSERT_TRUE(m["load_h_mean_keel"]["value"].is_number());
-  // Measured: equal to 1e-16 relative (the window's ends from x differ from 0.7 by round-off).
+  // Measured: equal, difference 0 (the ends from x differ from 0.7 and 1.2 s by round-off only).
   EXPECT_NEAR(m["load_h_mean_keel"]["value"].get<double>(), m["load_h_mean_late"]["value"].get<double>(),
               1e-12 * m["load_h_mean_late"]["value"].get<double>());
   auto r = hybridsim("metrics nothere.h5");
