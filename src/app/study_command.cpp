@@ -168,7 +168,11 @@ StudyJob member_job(const StudyDef& d, std::size_t index, const Member& m, const
   const fs::path out = d.output_dir / m.output_rel();
   const fs::path ckpt = fs::path(out).replace_extension(".ckpt.h5");
   StudyJob job{index, {}, fs::path(out).replace_extension(".log").string()};
-  if (d.mpi_ranks > 1) job.argv = {d.mpirun, "-np", std::to_string(d.mpi_ranks)};
+  if (d.mpi_ranks > 1) {
+    std::istringstream words(d.mpirun);  // the launcher and its own options, split at spaces
+    for (std::string w; words >> w;) job.argv.push_back(w);
+    job.argv.insert(job.argv.end(), {"-np", std::to_string(d.mpi_ranks)});
+  }
   job.argv.push_back(exe);
   for (const std::string& a : run_args(d, m)) job.argv.push_back(a);
   how = "fresh";

@@ -4,6 +4,7 @@
 #include "common/error.h"
 #include "json/reader.h"
 
+#include <algorithm>
 #include <set>
 
 namespace hs::study {
@@ -158,7 +159,13 @@ StudyDef parse_study(const nlohmann::json& doc, const fs::path& study_file) {
   if (o.has("set")) d.common = overrides(o.raw("set"), "/set");
   d.variants = variants(o);
   std::vector<std::string> names;
-  for (const Variant& v : d.variants) names.push_back(v.name);
+  for (const Variant& v : d.variants) {
+    if (std::find(names.begin(), names.end(), v.name) != names.end())
+      throw InputError(o.has("grid") ? "/grid" : "/variants",
+                       "two variants are named \"" + v.name + "\" (a grid value's \"/\" and spaces are written "
+                       "\"_\" in the name); make the values or the variant names differ");
+    names.push_back(v.name);
+  }
   d.reference = o.string("reference", "");
   if (!d.reference.empty() && std::find(names.begin(), names.end(), d.reference) == names.end())
     throw InputError("/reference", "\"" + d.reference + "\" is not a variant of the study" +

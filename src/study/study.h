@@ -43,7 +43,7 @@ struct StudyDef {
   std::string reference;                  ///< "reference": a variant name, "" for none
   std::string primary_metric;             ///< "primary_metric": the front's metric, "" = the first
   int mpi_ranks = 1;                      ///< "mpi_ranks": > 1 runs each member under mpirun -np K
-  std::string mpirun = "mpirun";          ///< "mpirun": the launcher used when mpi_ranks > 1
+  std::string mpirun = "mpirun";          ///< "mpirun": the launcher (and its options, split at spaces) when mpi_ranks > 1
   /// "windows": metric windows (docs/metrics.md, "Windows") the members' metrics are computed
   /// with, checked by sim::metric_windows_from_json; null: the metrics the run files hold.
   nlohmann::json windows;

@@ -113,12 +113,19 @@ std::string number_text(double x) {
   return buf;
 }
 
+std::string csv_cell(const std::string& s) {
+  if (s.find_first_of(",\"\n") == std::string::npos) return s;
+  std::string q = "\"";
+  for (const char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
+
 std::string summary_csv(const std::vector<SummaryRow>& rows) {
   std::ostringstream s;
   s << "variant,quantity,unit,n,mean,mean_ci_low,mean_ci_high,rel_error,rel_error_ci_low,rel_error_ci_high,"
        "ratio,ratio_ci_low,ratio_ci_high\n";
   for (const SummaryRow& r : rows) {
-    s << r.variant << "," << r.quantity << "," << r.unit << "," << r.mean.n << "," << number_text(r.mean.value) << ","
+    s << csv_cell(r.variant) << "," << csv_cell(r.quantity) << "," << csv_cell(r.unit) << "," << r.mean.n << "," << number_text(r.mean.value) << ","
       << number_text(r.mean.low) << "," << number_text(r.mean.high);
     const Comparison& c = r.vs_reference;
     if (r.has_reference)

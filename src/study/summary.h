@@ -75,4 +75,7 @@ std::string summary_markdown(const std::vector<SummaryRow>& rows, const std::str
 /// A double as CSV/markdown text: up to 10 significant digits, "" for NaN.
 std::string number_text(double x);
 
+/// A CSV cell: the text, quoted (with quotes doubled) when it holds a comma, quote or newline.
+std::string csv_cell(const std::string& s);
+
 }  // namespace hs::study

@@ -13,13 +13,6 @@ Column number(const std::string& name, const std::string& unit, const std::strin
   return {name, unit, description, false, {}, {}};
 }
 
-std::string csv_cell(const std::string& s) {
-  if (s.find_first_of(",\"\n") == std::string::npos) return s;
-  std::string q = "\"";
-  for (const char c : s) q += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return q + "\"";
-}
-
 }  // namespace
 
 std::vector<Column> table_columns(const std::vector<MemberRecord>& records) {

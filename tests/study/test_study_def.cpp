@@ -101,4 +101,6 @@ TEST(StudyDef, BadFieldsAreNamedWithTheFix) {
   check(R"({"base": "base.json", "seeds": 1, "variants": {"soft": []}, "reference": "sfot"})", "/reference",
         "did you mean \"soft\"");
   check(R"({"base": "base.json", "seeds": 1, "mpi_ranks": 0})", "/mpi_ranks", "out of range");
+  check(R"({"base": "base.json", "seeds": 1, "grid": {"structure.mesh": ["a/b", "a_b"]}})", "/grid",
+        "two variants are named \"structure.mesh=a_b\"");
 }
