@@ -131,6 +131,12 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
   else
     for (int k = 0; k < r.meta.ranks; ++k) r.all.push_back(io::read_checkpoint_rank(r.checkpoint_file, k));
   r.series = io::read_series_rows(r.run_file, r.meta.series_rows);
+  // The per-step load: one row per step up to the checkpoint's.
+  for (auto& rows : io::read_series_rows(r.run_file, r.meta.step, sim::kLoadPerStepGroup))
+    r.series.push_back(std::move(rows));
+  // The pile clock: its rows up to the checkpoint are counted once the schedule is built (apply_restart).
+  for (auto& rows : io::read_series_rows(r.run_file, io::kAllRows, sim::kPileClockGroup))
+    r.series.push_back(std::move(rows));
   return r;
 }
 
@@ -138,7 +144,9 @@ namespace {
 /// Float series added to the run file after checkpoints existed: a run file without one still
 /// restarts (its rows up to the checkpoint NaN). Any other missing series is refused.
 bool added_later(const std::string& path) {
-  static const char* const kAddedLater[] = {"/series/max_overlap_ratio"};
+  static const char* const kAddedLater[] = {"/series/max_overlap_ratio",   "/load_per_step/time",
+                                            "/load_per_step/force",        "/pile_per_clock/time",
+                                            "/pile_per_clock/height_top", "/pile_per_clock/height_mean"};
   for (const char* p : kAddedLater)
     if (path == p) return true;
   return false;
@@ -170,8 +178,17 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
   // The snapshots written up to the checkpoint (a stop's extra snapshot is not counted), then the
   // rows up to it, series by series in the order the recorders declared them.
   io::copy_snapshots(r.run_file, r.meta.snapshots, file, sim.comm().rank(), sim.comm().size());
+  // Rows up to the checkpoint: of /series, its series_rows; of the per-step load, one per step;
+  // of the pile clock, one at t = 0 and one per tick.
+  const auto rows_of = [&](const std::string& path) {
+    const auto in = [&](const char* group) { return path.rfind(std::string(group) + "/", 0) == 0; };
+    return in(sim::kLoadPerStepGroup)  ? r.meta.step
+           : in(sim::kPileClockGroup) ? r.meta.step / sim::pile_clock_every(sim.schedule()) + 1
+                                      : r.meta.series_rows;
+  };
   for (int id = 0; id < file.series_count(); ++id) {
     const std::string& path = file.series_path(id);
+    const std::uint64_t rows = rows_of(path);
     const io::SeriesRows* src = nullptr;
     for (const auto& s : r.series)
       if (s.path == path) src = &s;
@@ -182,13 +199,14 @@ std::uint64_t apply_restart(Restart& r, sim::Simulation& sim, sim::Recorders& re
                              "the checkpoint are NaN\n", r.run_file.c_str(), path.c_str());
       const std::vector<double> nan(static_cast<std::size_t>(file.series_width(id)),
                                     std::numeric_limits<double>::quiet_NaN());
-      for (std::uint64_t row = 0; row < r.meta.series_rows; ++row) file.append(id, nan.data());
+      for (std::uint64_t row = 0; row < rows; ++row) file.append(id, nan.data());
       continue;
     }
-    if (!src || src->width != file.series_width(id) || src->integer != file.series_is_integer(id))
+    if (!src || src->width != file.series_width(id) || src->integer != file.series_is_integer(id) || src->rows < rows)
       throw InputError("--restart", "the run file '" + r.run_file + "' has no series " + path +
-                                        " of the kind this run writes (is it the run file of this checkpoint?)");
-    for (std::uint64_t row = 0; row < src->rows; ++row) {
+                                        " of the kind and length this run writes (is it the run file of this "
+                                        "checkpoint?)");
+    for (std::uint64_t row = 0; row < rows; ++row) {
       const std::size_t o = row * static_cast<std::size_t>(src->width);
       if (src->integer)
         file.append(id, src->i64.data() + o);

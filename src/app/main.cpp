@@ -6,6 +6,8 @@
 //   hybridsim bench NAME                                      built-in benchmark (JSON line)
 //   hybridsim ridge scene.json [-o ridge.h5]                  build a ridge of rigid blocks
 //   hybridsim calibrate SCENE_OR_MATERIAL.json [--set ...]    virtual lab tests of the lattice
+//   hybridsim metrics RUN.h5 [--json]                         the run metrics (docs/metrics.md)
+//   hybridsim study STUDY.json [-j N] [--dry-run]             run a study's members, tables (docs/study.md)
 //   hybridsim --version
 //   mpirun -np N hybridsim scene.json ...                     the same run on N ranks (one output file)
 // Exit codes: 0 ok, 1 internal error, 2 bad input (hs::InputError), 3 simulation unstable
@@ -15,8 +17,10 @@
 // prints it too). MPI is initialised only when an MPI launcher started the process.
 #include "app/bench.h"
 #include "app/calibrate_command.h"
+#include "app/metrics_command.h"
 #include "app/ridge_command.h"
 #include "app/run.h"
+#include "app/study_command.h"
 #include "common/error.h"
 #include "parallel/comm.h"
 
@@ -68,11 +72,28 @@ void add_common(CLI::App* a, hs::app::RunOptions& opt, bool with_output) {
 struct Commands {
   hs::app::RunOptions opt;
   CLI::App *run = nullptr, *check = nullptr, *iso = nullptr, *ridge = nullptr, *calibrate = nullptr,
-           *bench = nullptr;
+           *bench = nullptr, *metrics = nullptr, *study = nullptr;
   std::string ridge_scene, ridge_out;
   std::string bench_name;
   hs::app::BenchOptions bench_opt;
+  hs::app::MetricsCommandOptions metrics_opt;
+  hs::app::StudyOptions study_opt;
 };
+
+void add_metrics(CLI::App& app, Commands& c) {
+  c.metrics = app.add_subcommand("metrics", "print the run metrics of a run file (docs/metrics.md): stored in "
+                                            "/analysis/metrics, or computed from the file when absent");
+  hs::app::MetricsCommandOptions& m = c.metrics_opt;
+  c.metrics->add_option("run", m.run_file, "run file (HDF5) written by hybridsim run")->required();
+  c.metrics->add_flag("--json", m.json, "print JSON: {name: {value (null: no data), unit, description}}");
+  c.metrics->add_option("--windows", m.windows_file,
+                        "JSON file with an array of windows [{\"name\", \"t0\", \"t1\"} (s) or {\"name\", "
+                        "\"x0\", \"x1\"} (m, the pier's waterline front)]: computed from the file with them")
+      ->check(CLI::ExistingFile);
+  c.metrics->add_option("--moving-window", m.moving_window,
+                        "s, width of the moving mean of the peak load (default 1): computed from the file with it")
+      ->check(CLI::PositiveNumber);
+}
 
 void add_ridge(CLI::App& app, Commands& c) {
   c.ridge = app.add_subcommand("ridge", "build a ridge (rigid blocks rise and settle under the ice), "
@@ -123,6 +144,18 @@ void add_bench(CLI::App& app, Commands& c) {
                     "(that ridge is in motion in the bench's world; docs/rigid.md)");
 }
 
+void add_study(CLI::App& app, Commands& c) {
+  c.study = app.add_subcommand("study", "run a study: a base scene's variants x seeds as members, resumably; "
+                                        "member table, summary with bootstrap 95 % intervals and the error-against-"
+                                        "core-hours front (docs/study.md)");
+  hs::app::StudyOptions& s = c.study_opt;
+  c.study->add_option("study", s.study_file, "study file (JSON, see docs/study.md)")->required();
+  c.study->add_option("-j,--jobs", s.jobs, "members run at once (default 1)")->check(CLI::PositiveNumber);
+  c.study->add_flag("--dry-run", s.dry_run, "list the members and their estimated core-hours; run nothing");
+  c.study->add_flag("--retry-failed", s.retry_failed, "run the members whose last run failed again");
+  c.study->add_flag("--no-plot", s.no_plot, "write the tables only, not front.png");
+}
+
 /// Every subcommand and option, bound to `c`.
 void add_commands(CLI::App& app, Commands& c) {
   app.set_version_flag("--version", std::string("hybridsim ") + HYBRIDSIM_VERSION);
@@ -139,6 +172,8 @@ void add_commands(CLI::App& app, Commands& c) {
   add_ridge(app, c);
   add_calibrate(app, c);
   add_bench(app, c);
+  add_metrics(app, c);
+  add_study(app, c);
 }
 
 /// Runs the parsed command (exceptions go to main).
@@ -147,7 +182,16 @@ int dispatch(CLI::App& app, const Commands& c, const hs::par::Comm& world, std::
   const hs::app::RunOptions& opt = c.opt;
   if (*c.bench) return hs::app::run_benchmark(c.bench_name, out, std::cerr, world, c.bench_opt);
   // Ridge building is serial (a replicated rigid world gains nothing from more ranks): rank 0.
+  if (*c.study) {
+    if (world.parallel()) {
+      std::fprintf(stderr, "error: study: run `hybridsim study` without mpirun; \"mpi_ranks\" in the study file "
+                           "runs each member under mpirun\n");
+      return 2;
+    }
+    return hs::app::study_command(c.study_opt, out, progress);
+  }
   if (*c.ridge) return root ? hs::app::ridge_command(c.ridge_scene, c.ridge_out, std::cout, opt.ignore_memory_limit) : 0;
+  if (*c.metrics) return root ? hs::app::metrics_command(c.metrics_opt, out) : 0;
   if (opt.scene_path.empty()) {
     std::fprintf(stderr, "error: no scene file given\n%s", app.help().c_str());
     return 2;

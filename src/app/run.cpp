@@ -8,6 +8,7 @@
 #include "app/checkpoint.h"
 #include "app/output_lock.h"
 #include "app/output_path.h"
+#include "app/metrics_command.h"
 #include "app/progress.h"
 #include "app/run_summary.h"
 #include "app/stop_signal.h"
@@ -16,6 +17,7 @@
 #include "io/run_file.h"
 #include "parallel/comm.h"
 #include "scene/scene.h"
+#include "sim/metrics.h"
 #include "sim/recorder.h"
 #include "sim/report.h"
 #include "sim/simulation.h"
@@ -165,18 +167,37 @@ void warn_past_limits(std::ostream& err, double run_seconds, double file_bytes, 
 
 }  // namespace
 
+namespace {
+
+/// The scene built as `check` builds it: blocks counted, not converted; no relaxation; dt not checked.
+sim::Simulation build_for_check(const scene::Scene& s, const RunOptions& opt) {
+  return sim::build_simulation(
+      s, par::serial(),
+      {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit, .relax = false});
+}
+
+/// The particle-steps of the run: the initial particles times the steps (the run-time estimate's work).
+double particle_steps(const sim::Simulation& sim) {
+  return static_cast<double>(sim.built().particles) * static_cast<double>(sim.schedule().total_steps);
+}
+
+}  // namespace
+
+double estimated_core_seconds(const RunOptions& opt) {
+  const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
+  return particle_steps(build_for_check(s, opt)) / kParticleStepsPerSecond;
+}
+
 int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
   for (const auto& w : s.warnings) err << "warning: " << w << "\n";
-  // dt is checked last, after the figures that explain it; blocks are counted, not converted.
-  const sim::Simulation sim = sim::build_simulation(
-      s, par::serial(),
-      {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit, .relax = false});
+  // dt is checked last, after the figures that explain it.
+  const sim::Simulation sim = build_for_check(s, opt);
   for (const auto& w : sim.warnings()) err << "warning: " << w << "\n";
   const sim::Built& b = sim.built();
   const double dt = sim.dt(), crit = sim.critical_time_step();
   const sim::Schedule& sc = sim.schedule();
-  const double psteps = static_cast<double>(b.particles) * sc.total_steps;
+  const double psteps = particle_steps(sim);
   const std::uint64_t rows = sc.total_steps / sc.output_every + 1;
   const std::uint64_t snaps = sc.snapshot_every ? sc.total_steps / sc.snapshot_every + 1 : 0;
   const double file_bytes = snaps * b.particles * (7 * 8 + 4 + 8) + rows * (8 * 16 + 6 * s.walls.size() * 8);
@@ -510,6 +531,11 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   comm.barrier();  // every rank's close has completed before rank 0 reopens the file
   if (comm.rank() == 0) sim::write_analysis(in.out_path, an);
   print_summary(out, s, sim, fig, an, RunEnd{start, end.wall, in.out_path, end.first}, comm);
+  if (comm.rank() == 0 && sim.has_structure()) {  // from the file: the one definition (docs/metrics.md)
+    const std::vector<analysis::Metric> metrics = sim::compute_run_metrics(in.out_path);
+    sim::write_run_metrics(in.out_path, metrics);
+    print_metrics_table(out, metrics);
+  }
   if (signals.received())
     std::fprintf(progress, "hybridsim: %s received after the last step: the run was complete and its report is written\n",
                  signal_name(signals.received()));

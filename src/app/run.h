@@ -52,6 +52,11 @@ inline constexpr double kParticleStepsPerSecond = 3e6;
 /// step are flushed and closed first).
 int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress);
 
+/// The run-time estimate `check` prints, in core-seconds: the scene's particle-steps (initial
+/// particles x steps) at kParticleStepsPerSecond. Loads and builds the scene as `check` does
+/// (blocks not converted, no relaxation: neither is in the estimate). Throws hs::InputError.
+double estimated_core_seconds(const RunOptions& opt);
+
 /// Loads and builds the scene and prints the derived figures (counts, dt, estimates).
 /// Returns 0; throws hs::InputError.
 int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err);

@@ -225,21 +225,23 @@ StateArchive read_checkpoint_rank(const std::string& path, int rank, const std::
   return a;
 }
 
-std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows) {
+std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t all_rows, const std::string& group) {
   if (!fs::exists(path)) throw InputError("--restart", "no run file '" + path + "'");
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);
   const hid_t fid = H5Fopen(path.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
   if (fid < 0) throw InputError("--restart", "cannot open the run file '" + path + "' (" + h5::error_stack_text() + ")");
   Handle f(fid, H5Fclose);
   std::vector<SeriesRows> out;
-  if (H5Lexists(f.get(), "/series", H5P_DEFAULT) <= 0)
+  if (H5Lexists(f.get(), group.c_str(), H5P_DEFAULT) <= 0) {
+    if (group != "/series") return out;
     throw InputError("--restart", "the run file '" + path + "' has no /series");
-  Handle grp(check_id(H5Gopen2(f.get(), "/series", H5P_DEFAULT), "H5Gopen2", "/series", path), H5Gclose);
+  }
+  Handle grp(check_id(H5Gopen2(f.get(), group.c_str(), H5P_DEFAULT), "H5Gopen2", group, path), H5Gclose);
   std::vector<std::string> names;
-  check(H5Lvisit(grp.get(), H5_INDEX_NAME, H5_ITER_INC, collect_dataset, &names), "H5Lvisit", "/series", path);
+  check(H5Lvisit(grp.get(), H5_INDEX_NAME, H5_ITER_INC, collect_dataset, &names), "H5Lvisit", group, path);
   for (const auto& n : names) {
     SeriesRows s;
-    s.path = "/series/" + n;
+    s.path = group + "/" + n;
     Handle d(check_id(H5Dopen2(grp.get(), n.c_str(), H5P_DEFAULT), "H5Dopen2", s.path, path), H5Dclose);
     Handle space(check_id(H5Dget_space(d.get()), "H5Dget_space", s.path, path), H5Sclose);
     const int rank = H5Sget_simple_extent_ndims(space.get());
@@ -247,6 +249,7 @@ std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t 
     if (rank < 1 || rank > 2 || H5Sget_simple_extent_dims(space.get(), dims, nullptr) < 0)
       throw InputError("--restart", "series '" + s.path + "' in '" + path + "' is not 1-D or 2-D");
     s.width = rank == 2 ? static_cast<int>(dims[1]) : 1;
+    const std::uint64_t rows = all_rows == kAllRows ? dims[0] : all_rows;
     if (dims[0] < rows)
       throw InputError("--restart", "the run file '" + path + "' holds " + std::to_string(dims[0]) + " rows of " +
                                         s.path + ", the checkpoint needs " + std::to_string(rows) +

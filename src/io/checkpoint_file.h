@@ -65,9 +65,13 @@ struct SeriesRows {
   std::vector<double> f64;
   std::vector<std::int64_t> i64;
 };
-/// Every dataset under /series of the run file at `path`, each cut to its first `rows` rows;
-/// hs::InputError("--restart", ...) when the file cannot be read or a series holds fewer rows.
-std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows);
+/// Every dataset under `group` (/series of a run file, or another group of row series) of the
+/// run file at `path`, each cut to its first `rows` rows; hs::InputError("--restart", ...) when
+/// the file cannot be read or a series holds fewer rows. A missing group other than /series
+/// gives no series. rows = kAllRows: every row of each series.
+inline constexpr std::uint64_t kAllRows = ~std::uint64_t{0};
+std::vector<SeriesRows> read_series_rows(const std::string& path, std::uint64_t rows,
+                                         const std::string& group = "/series");
 
 class RunFile;
 

@@ -104,6 +104,20 @@ void RunFileEditor::add_vector(const std::string& path, const std::vector<std::i
   impl_->vector(path, H5T_NATIVE_INT64, H5T_STD_I64LE, v.data(), v.size(), units, description);
 }
 
+void RunFileEditor::add_scalar(const std::string& path, double value, const std::string& unit,
+                               const std::string& description) {
+  const Impl& m = *impl_;
+  Handle sp(m.check_id(H5Screate(H5S_SCALAR), "H5Screate", path), H5Sclose);
+  Handle d(m.check_id(H5Dcreate2(m.file.get(), path.c_str(), H5T_IEEE_F64LE, sp.get(), H5P_DEFAULT, H5P_DEFAULT,
+                                 H5P_DEFAULT),
+                      "H5Dcreate2", path),
+           H5Dclose);
+  m.check(H5Dwrite(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value), "H5Dwrite", path);
+  m.string_attribute(d.get(), path, "unit", unit);
+  m.string_attribute(d.get(), path, "units", unit);  // as every other dataset of the file
+  m.string_attribute(d.get(), path, "description", description);
+}
+
 void RunFileEditor::flush() { impl_->check(H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL), "H5Fflush", "/"); }
 
 }  // namespace hs::io

@@ -32,6 +32,9 @@ class RunFileEditor {
                   const std::string& description);
   void add_vector(const std::string& path, const std::vector<std::int64_t>& values, const std::string& units,
                   const std::string& description);
+  /// A scalar float64 dataset at `path` with string attributes "unit" (also as "units") and "description": a run
+  /// metric (docs/metrics.md). NaN is written as it is: the metric has no data.
+  void add_scalar(const std::string& path, double value, const std::string& unit, const std::string& description);
   /// Writes everything to the file (H5Fflush).
   void flush();
 

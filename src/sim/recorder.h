@@ -49,6 +49,19 @@ struct RunFigures {
 /// floating block's heave period (~1.5 s), so a block that bobs still reads its speed.
 inline constexpr double kRestWindow = 0.1;
 
+/// The group of the structure's per-step load (recorders.cpp, LoadPerStepRecorder): `time` (s) and
+/// `force` (N, n x 3), one row per DEM step whatever the output interval; the run metrics come
+/// from it (docs/metrics.md). A checkpoint at step k counts k of its rows.
+inline constexpr const char* kLoadPerStepGroup = "/load_per_step";
+
+/// The group of the pile heights on a fixed clock (recorders.cpp, PileClockRecorder): `time` (s),
+/// `height_top` and `height_mean` (m), every kPileClock s of simulated time from t = 0 whatever
+/// the output interval; the pile metrics' peaks come from it (docs/metrics.md).
+inline constexpr const char* kPileClockGroup = "/pile_per_clock";
+inline constexpr double kPileClock = 0.05;  ///< s
+/// Steps between rows of kPileClockGroup (at least 1); a checkpoint at step k counts k / it + 1 rows.
+std::uint64_t pile_clock_every(const Schedule& sc);
+
 class Recorder {
  public:
   virtual ~Recorder() = default;

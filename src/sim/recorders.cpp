@@ -13,6 +13,8 @@
 #include <cmath>
 #include <cstring>
 #include <iterator>
+#include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 
@@ -222,6 +224,35 @@ class StructureLoadRecorder : public Recorder {
   double peak_h_ = 0.0, peak_h_time_ = 0.0, peak_step_ = 0.0, peak_step_time_ = 0.0;
 };
 
+// ---- /load_per_step/{time,force}: the structure's load of every DEM step (the value
+// StructureLoadRecorder averages into its rows), so that the run metrics do not depend on the
+// output interval. Due every step: one row of 4 doubles into RunFile's buffer, written at its
+// flushes; nothing kept between steps, so a checkpoint needs nothing from it (its rows up to the
+// checkpoint step are copied back by a restart). Under MPI the load is already reduced over the
+// ranks every step (Engine::reduce_loads; the blocks' share is replicated): every rank appends
+// the same rows and rank 0 writes them, as for /series.
+class LoadPerStepRecorder : public Recorder {
+ public:
+  void declare(io::RunFile& f) override {
+    const std::string g = kLoadPerStepGroup;
+    id_time_ = f.add_series(g + "/time", 1, "s", "time at the end of each DEM step (step 1 first)");
+    id_force_ = f.add_series(g + "/force", 3, "N",
+                             "force exerted by the ice on the structure during each DEM step (particles + blocks)");
+  }
+  bool due(std::uint64_t, const Schedule&) const override { return true; }
+  void write(Simulation& sim, io::RunFile& f) override {
+    if (sim.engine().step_count() == 0) return;  // the initial row: no step yet
+    sim.structure_load(load_);
+    const double t = sim.engine().time();
+    f.append(id_time_, &t);
+    f.append(id_force_, load_.force.data());
+  }
+
+ private:
+  StructureLoad load_;  ///< this step's, reused
+  int id_time_ = -1, id_force_ = -1;
+};
+
 // ---- /series/pile_height, /series/structure_position
 /// The largest value of a series and when it was reached; kept across a restart.
 struct RunningMax {
@@ -305,6 +336,50 @@ class PileMeanRecorder : public Recorder {
   const par::Comm& comm_;
   int id_ = -1;
   RunningMax max_;
+};
+
+// ---- /pile_per_clock/{time,height_top,height_mean}: /series/pile_height and
+// /series/pile_height_mean (pier only; NaN otherwise) every kPileClock s, on a clock of its own,
+// so that their peaks do not depend on the output interval. Rows at t = 0 and every
+// pile_clock_every steps; none at a stop between two (Recorders::write_stop), so a restarted
+// run's rows are an uninterrupted run's.
+class PileClockRecorder : public Recorder {
+ public:
+  PileClockRecorder(const analysis::PileProbe& probe, std::optional<analysis::PileBand> band, std::uint64_t every,
+                    const par::Comm& comm)
+      : probe_(probe), band_(std::move(band)), every_(every), comm_(comm) {}
+  void declare(io::RunFile& f) override {
+    const std::string g = kPileClockGroup;
+    id_time_ = f.add_series(g + "/time", 1, "s", "simulated time, every " + json_fmt(kPileClock) + " s");
+    id_top_ = f.add_series(g + "/height_top", 1, "m", "as /series/pile_height, every " + json_fmt(kPileClock) + " s");
+    id_mean_ = f.add_series(g + "/height_mean", 1, "m",
+                            "as /series/pile_height_mean (NaN without a pier), every " + json_fmt(kPileClock) + " s");
+  }
+  bool due(std::uint64_t k, const Schedule&) const override { return k % every_ == 0; }
+  void write(Simulation& sim, io::RunFile& f) override {
+    if (sim.engine().step_count() % every_ != 0) return;  // a stop between two ticks
+    const auto& ps = sim.engine().particles();
+    probe_.axis_point = sim.structure_position();
+    const double t = sim.engine().time();
+    const double top = comm_.max(analysis::pile_height(probe_, ps.x.data(), ps.radius.data(), ps.owned()));
+    double mean = std::numeric_limits<double>::quiet_NaN();
+    if (band_) {
+      band_->axis_point = probe_.axis_point;
+      std::vector<double> crest = analysis::pile_crests(*band_, ps.x.data(), ps.radius.data(), ps.owned());
+      comm_.max(crest.data(), static_cast<int>(crest.size()));
+      mean = analysis::mean_crest(crest);
+    }
+    f.append(id_time_, &t);
+    f.append(id_top_, &top);
+    f.append(id_mean_, &mean);
+  }
+
+ private:
+  analysis::PileProbe probe_;
+  std::optional<analysis::PileBand> band_;
+  std::uint64_t every_;
+  const par::Comm& comm_;
+  int id_time_ = -1, id_top_ = -1, id_mean_ = -1;
 };
 
 // ---- the blocks' and particles' mean speeds over the run's last kRestWindow seconds (the at-rest check)
@@ -689,6 +764,10 @@ analysis::PileBand pile_band(const Simulation& sim, const scene::Scene& s) {
 
 }  // namespace
 
+std::uint64_t pile_clock_every(const Schedule& sc) {
+  return std::max<std::uint64_t>(1, static_cast<std::uint64_t>(std::llround(kPileClock / sc.dt)));
+}
+
 std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, const scene::Scene& s,
                                                       const par::Comm& comm) {
   const bool st = sim.has_structure();
@@ -704,6 +783,12 @@ std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, con
   if (sim.schedule().snapshot_every) r.push_back(std::make_unique<SnapshotRecorder>(comm));  // last: after the row
   // After the snapshots: a checkpoint keys recorders by position, so the older ones keep theirs.
   r.push_back(std::make_unique<OverlapRecorder>(comm));
+  if (st) r.push_back(std::make_unique<LoadPerStepRecorder>());
+  if (st) {
+    std::optional<analysis::PileBand> band;
+    if (s.structure.type == "pier") band = pile_band(sim, s);
+    r.push_back(std::make_unique<PileClockRecorder>(pile_probe(sim, s), band, pile_clock_every(sim.schedule()), comm));
+  }
   return r;
 }
 

@@ -75,57 +75,14 @@ void make_scene() {
   made = true;
 }
 
-// ---- HDF5 reading
-herr_t collect(hid_t loc, const char* name, const H5L_info_t*, void* data) {
-  H5O_info_t info;
-  if (H5Oget_info_by_name(loc, name, &info, H5P_DEFAULT) >= 0 && info.type == H5O_TYPE_DATASET)
-    static_cast<std::vector<std::string>*>(data)->push_back(name);
-  return 0;
-}
-
-/// Every dataset under `group` of `file` as raw bytes (native type of the file), by name.
-std::map<std::string, std::string> datasets(const fs::path& file, const std::string& group) {
-  std::map<std::string, std::string> out;
-  const hid_t f = H5Fopen(file.c_str(), H5F_ACC_RDONLY, H5P_DEFAULT);
-  if (f < 0) return out;
-  const hid_t g = H5Gopen2(f, group.c_str(), H5P_DEFAULT);
-  if (g >= 0) {
-    std::vector<std::string> names;
-    H5Lvisit(g, H5_INDEX_NAME, H5_ITER_INC, collect, &names);
-    for (const auto& n : names) {
-      const hid_t d = H5Dopen2(g, n.c_str(), H5P_DEFAULT);
-      const hid_t t = H5Dget_type(d);
-      const hid_t nt = H5Tget_native_type(t, H5T_DIR_ASCEND);
-      const hid_t s = H5Dget_space(d);
-      std::string bytes(static_cast<std::size_t>(H5Sget_simple_extent_npoints(s)) * H5Tget_size(nt), '\0');
-      if (!bytes.empty()) H5Dread(d, nt, H5S_ALL, H5S_ALL, H5P_DEFAULT, bytes.data());
-      out[n] = bytes;
-      H5Sclose(s);
-      H5Tclose(nt);
-      H5Tclose(t);
-      H5Dclose(d);
-    }
-    H5Gclose(g);
-  }
-  H5Fclose(f);
-  return out;
-}
+using hs::testing::datasets;
 
 /// Wall-clock figures inside a checkpoint: the only entries two identical runs may differ in.
 bool is_timing(const std::string& key) {
   return key.find("parallel_stats") != std::string::npos || key.find("report_doubles") != std::string::npos;
 }
 
-/// Every /series dataset of a and b bit-identical, and the same set of them.
-void expect_same_series(const fs::path& a, const fs::path& b) {
-  const auto sa = datasets(a, "/series"), sb = datasets(b, "/series");
-  ASSERT_FALSE(sa.empty()) << a;
-  ASSERT_EQ(sa.size(), sb.size());
-  for (const auto& [name, bytes] : sa) {
-    ASSERT_TRUE(sb.count(name)) << name;
-    EXPECT_TRUE(sb.at(name) == bytes) << "/series/" << name << " differs between " << a << " and " << b;
-  }
-}
+using hs::testing::expect_same_series;
 
 /// The two checkpoints hold the same step and every state entry of every rank byte for byte.
 void expect_same_checkpoint(const fs::path& a, const fs::path& b, int ranks) {
