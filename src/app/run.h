@@ -34,9 +34,6 @@ struct RunOptions {
 /// Exit code of a run stopped by SIGINT/SIGTERM: 128 + the signal (130, 143).
 inline int stopped_exit_code(int sig) { return 128 + sig; }
 
-/// Assumed throughput for run-time estimates (one core, Release).
-inline constexpr double kParticleStepsPerSecond = 3e6;
-
 /// Loads, builds and runs the scene, writing the HDF5 run file. Under MPI every rank calls this
 /// (collective); each builds the scene, keeps its share, and all write the one file. Progress goes to `progress`
 /// (a single updating line when it is a terminal, a log line every ~10 s otherwise), the

@@ -39,6 +39,16 @@ struct RunFileEditor::Impl {
     check(H5Tset_size(t.get(), std::max<std::size_t>(1, v.size())), "H5Tset_size", object);
     attribute(obj, object, name, t.get(), v.c_str());
   }
+  void scalar(const std::string& path, double value, const std::string& units, const std::string& description) const {
+    Handle sp(check_id(H5Screate(H5S_SCALAR), "H5Screate", path), H5Sclose);
+    Handle d(check_id(H5Dcreate2(file.get(), path.c_str(), H5T_IEEE_F64LE, sp.get(), H5P_DEFAULT, H5P_DEFAULT,
+                                 H5P_DEFAULT),
+                      "H5Dcreate2", path),
+             H5Dclose);
+    check(H5Dwrite(d.get(), H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, &value), "H5Dwrite", path);
+    string_attribute(d.get(), path, "units", units);
+    string_attribute(d.get(), path, "description", description);
+  }
   void vector(const std::string& path, hid_t mem_type, hid_t file_type, const void* data, std::size_t n,
               const std::string& units, const std::string& description) const {
     const hsize_t dims[1] = {static_cast<hsize_t>(n)};
@@ -102,6 +112,14 @@ void RunFileEditor::add_vector(const std::string& path, const std::vector<double
 void RunFileEditor::add_vector(const std::string& path, const std::vector<std::int64_t>& v,
                                const std::string& units, const std::string& description) {
   impl_->vector(path, H5T_NATIVE_INT64, H5T_STD_I64LE, v.data(), v.size(), units, description);
+}
+
+void RunFileEditor::add_scalar(const std::string& path, double value, const std::string& units,
+                               const std::string& description) {
+  if (!std::isfinite(value))
+    throw std::invalid_argument("refusing to write the non-finite value " + std::to_string(value) + " to '" + path +
+                                "' in '" + impl_->path + "'");
+  impl_->scalar(path, value, units, description);
 }
 
 void RunFileEditor::flush() { impl_->check(H5Fflush(impl_->file.get(), H5F_SCOPE_GLOBAL), "H5Fflush", "/"); }

@@ -32,6 +32,8 @@ class RunFileEditor {
                   const std::string& description);
   void add_vector(const std::string& path, const std::vector<std::int64_t>& values, const std::string& units,
                   const std::string& description);
+  /// A scalar float64 dataset at `path` with "units" and "description" string attributes.
+  void add_scalar(const std::string& path, double value, const std::string& units, const std::string& description);
   /// Writes everything to the file (H5Fflush).
   void flush();
 

@@ -7,6 +7,7 @@
 #include "sim/ridge_sheet.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <sstream>
 
@@ -127,7 +128,9 @@ RidgeKeel ridge_keel(const rigid::RidgeResult& r, const std::string& path) {
 /// shifted by the offset, with their joints to each other and to the ice sheet.
 void add_ridge_blocks(BlockSetup& out, const scene::Scene& s) {
   const auto& b = s.blocks;
+  const auto t_read = std::chrono::steady_clock::now();
   const rigid::RidgeResult r = io::load_ridge(b.ridge_file_path);
+  out.ridge_read_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_read).count();
   check_ridge_generation(r, s, b.ridge_file_path);  // made with this run's ice (docs/ridge.md)
   out.ridge_blocks_in_file = r.blocks.size();
   out.ridge = ridge_keel(r, b.ridge_file_path);

@@ -23,6 +23,7 @@ struct BlockSetup {
   std::size_t ridge_blocks_in_file = 0;          ///< before keep_x / keep_y / keep_sail
   std::size_t loose_blocks_dropped = 0;          ///< kept ridge blocks without a joint, left out (blocks.loose_blocks)
   std::optional<RidgeKeel> ridge;                ///< the ridge file's keel (ISO inputs), if there is one
+  double ridge_read_seconds = 0.0;               ///< wall time reading the ridge file (the run's cost)
   std::vector<std::string> warnings;
 };
 

@@ -65,19 +65,27 @@ bonded::ParallelDef parallel_def(const scene::Scene& s) {
 }
 
 Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {
+  const auto t_build = CostClock::now();
   Simulation sim;
+  CostLedger& cost = sim.cost_ledger_;
   MemoryEstimate est = memory_estimate(s);
   if (!opt.ignore_memory_limit) check_memory(s, est, available_memory_bytes(), comm.size());
   // The scene's ice, once for the run: the engine's springs and bonds, the blocks' freeze and
   // conversion limits (Built::calibrated keeps it for the report and the run file).
   std::optional<CalibratedIce> own;
-  const CalibratedIce& ice = opt.calibrated ? *opt.calibrated : own.emplace(calibrate_ice(s));
+  if (!opt.calibrated) {
+    const auto t = CostClock::now();
+    own.emplace(calibrate_ice(s));
+    cost.add(Phase::Calibration, seconds_since(t));
+  }
+  const CalibratedIce& ice = opt.calibrated ? *opt.calibrated : *own;
   sim.built_ = build_engine(s, ice, opt.check_dt);
   // InputError when the ice starts inside the structure; a warning for shallow overlaps
   const std::string overlap = check_structure_overlap(sim.built_, s);
   bonded::Engine& e = *sim.built_.engine;
   const mesh::TriMesh* structure = sim.has_structure() ? &sim.built_.structure_mesh : nullptr;
   sim.blocks_ = block_setup(s, sim.built_.calibrated, structure, sim.built_.structure_radius);
+  cost.add(Phase::Read, sim.blocks_.ridge_read_seconds);
   if (!opt.ignore_memory_limit && !sim.blocks_.blocks.empty()) {  // before the rigid world and any conversion
     add_blocks(est, sim.blocks_, s.material.particle_diameter, s.walls.size());
     check_memory(s, est, available_memory_bytes(), comm.size());
@@ -93,15 +101,29 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
   sim.hybrid_ = std::make_unique<bridge::HybridSystem>(e, def, b.blocks, b.joints, b.ice_joints);
   if (relax) {
     if (opt.restart_state) {
+      const auto t = CostClock::now();
       try {
         sim.hybrid_->restore_relaxation(*opt.restart_state, "hybrid/");
       } catch (const std::exception& ex) {
         throw InputError("--restart", std::string("the checkpoint's relaxed ridge does not fit the scene as built: ") +
                                           ex.what());
       }
+      cost.add(Phase::Freeze, seconds_since(t));
     } else {
       const auto& r = s.blocks.relax;
-      const bridge::RelaxReport& rep = sim.hybrid_->relax(relax_def(s), opt.relax_progress);
+      // Each stage timed from one rigid step's report to the next; the freeze after the last.
+      auto lap = CostClock::now();
+      const bridge::RelaxProgressFn timed = [&](const RelaxProgress& p) {
+        const auto now = CostClock::now();
+        cost.add(p.stage == 3   ? Phase::RelaxLattice
+                 : p.stage == 2 ? Phase::RelaxJointed
+                                : Phase::RelaxRigid,
+                 std::chrono::duration<double>(now - lap).count());
+        lap = now;
+        return opt.relax_progress && opt.relax_progress(p);
+      };
+      const bridge::RelaxReport& rep = sim.hybrid_->relax(relax_def(s), timed);
+      cost.add(Phase::Freeze, seconds_since(lap));
       if (rep.stopped) throw RelaxationStopped(rep.time);
       // Not at rest at the freeze: the last stage did not end at rest (a first stage that ends
       // at max_time is what the jointed stage is for).
@@ -148,6 +170,9 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
     e.distribute(comm, parallel_def(s));
   }
   sim.schedule_ = schedule(s.time, e.dt());
+  double timed = 0.0;  // the build is the rest of this function's time
+  for (std::size_t k = 0; k < kFirstStepPhase; ++k) timed += cost.seconds[k];
+  cost.add(Phase::Build, seconds_since(t_build) - timed);
   return sim;
 }
 

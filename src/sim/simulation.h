@@ -13,6 +13,7 @@
 #include "scene/scene.h"
 #include "sim/blocks.h"
 #include "sim/build.h"
+#include "sim/cost.h"
 #include "sim/run_stats.h"
 
 #include <cstdint>
@@ -85,7 +86,10 @@ struct RelaxationStopped : std::runtime_error {
 class Simulation {
  public:
   /// One DEM step of the particles; the blocks advance every steps_per_rigid_step() of them.
-  void step() { hybrid_->step(); }
+  void step() {
+    hybrid_->step();
+    cost_ledger_.particle_steps += static_cast<double>(engine().particles().owned());
+  }
 
   bonded::Engine& engine() { return *built_.engine; }
   const bonded::Engine& engine() const { return *built_.engine; }
@@ -124,6 +128,15 @@ class Simulation {
   /// MPI: the particle and bond counts are summed over the ranks.
   RunStats run_stats() const;
 
+  // ---- cost (sim/cost.h) ----
+  /// The phases timed outside the step (set-up, output, the loop's MPI poll, analysis): the
+  /// builder and the run add to it; checkpoints carry it.
+  CostLedger& cost_ledger() { return cost_ledger_; }
+  const CostLedger& cost_ledger() const { return cost_ledger_; }
+  /// This rank's cost of the run so far: the ledger's phases with the step's parts from the
+  /// engine and the hybrid system; the wall time of every process, this one's up to now.
+  RunCost cost() const;
+
   // ---- checkpoints (simulation_checkpoint.cpp; docs/output.md, "Checkpoints") ----
   /// Writes the checkpoint of the state after the current step to `path`: every part's state
   /// (engine, hybrid system with its rigid world, recorders). Collective under MPI: rank 0
@@ -146,6 +159,7 @@ class Simulation {
   BlockSetup blocks_;
   std::unique_ptr<bridge::HybridSystem> hybrid_;
   Schedule schedule_;
+  CostLedger cost_ledger_;
 };
 
 /// The relaxation before the freeze as the scene gives it (blocks.relax), for HybridSystem::relax.

@@ -113,7 +113,9 @@ std::map<std::string, std::string> datasets(const fs::path& file, const std::str
 
 /// Wall-clock figures inside a checkpoint: the only entries two identical runs may differ in.
 bool is_timing(const std::string& key) {
-  return key.find("parallel_stats") != std::string::npos || key.find("report_doubles") != std::string::npos;
+  return key.find("parallel_stats") != std::string::npos || key.find("report_doubles") != std::string::npos ||
+         key.find("report_seconds") != std::string::npos || key.find("cost/seconds") != std::string::npos ||
+         key.find("cost/figures") != std::string::npos;
 }
 
 /// Every /series dataset of a and b bit-identical, and the same set of them.
