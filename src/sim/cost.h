@@ -122,7 +122,7 @@ struct CostInputs {
 /// AVX-512), measured from /analysis/cost of short runs (docs/output.md, "Estimated run time");
 /// another machine scales them all by its speed.
 struct CostRates {
-  double particle_step = 1.0 / 3e6;      ///< s per particle-step: the particles' phases
+  double particle_step = 1.0 / 4.4e6;    ///< s per particle-step: the particles' phases
   double block_iteration = 0.0;          ///< s per movable block, rigid step and solver iteration
   double output_share = 0.0;             ///< output, bridge and the rest, as a fraction of the above
 };
