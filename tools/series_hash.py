@@ -6,7 +6,8 @@ bit-identical (the refactoring check of issue 12).
 
 Prints one SHA-256 over every dataset under the group (default: /series of a run file; for a
 ridge file use --group / ), taken in sorted path order over the raw bytes, dtype and shape,
-and with -v one line per dataset. Attributes are not hashed: they hold wall times and dates.
+and with -v one line per dataset. Attributes are not hashed: they hold wall times and dates;
+nor is /analysis/cost, the run's wall time by phase (docs/output.md).
 """
 import argparse
 import hashlib
@@ -16,11 +17,17 @@ import h5py
 import numpy as np
 
 
+# Groups whose datasets are wall times: they differ from run to run by design.
+WALL_TIME_GROUPS = {"/analysis/cost"}
+
+
 def datasets(group, prefix):
     out = []
     for name in sorted(group.keys()):
         obj = group[name]
         path = f"{prefix.rstrip('/')}/{name}"
+        if path in WALL_TIME_GROUPS:
+            continue
         if isinstance(obj, h5py.Group):
             out += datasets(obj, path)
         elif isinstance(obj, h5py.Dataset):

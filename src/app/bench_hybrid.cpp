@@ -351,6 +351,7 @@ struct HybridTiming {
   std::size_t awake_max = 0, awake_samples = 0;
   std::size_t woken0 = 0, repeated0 = 0;  ///< far sleep's counts when the timed steps began
   double wall = 0.0;
+  sim::RunCost cost0, cost1;  ///< this rank's cost breakdown when the timed steps began and ended
 };
 
 /// Warm-up, untimed: the steps up to the second rigid step. The world's first sub-step does the
@@ -375,6 +376,7 @@ HybridTiming time_hybrid(sim::Simulation& sim, const par::Comm& comm, std::uint6
   std::uint64_t rigid_before = hy.report().rigid_steps;
   t.woken0 = world.sleepers_woken_by_solve();
   t.repeated0 = world.solves_repeated();
+  t.cost0 = sim.cost();
   const auto t1 = Clock::now();
   for (std::uint64_t k = 0; k < steps; ++k) {
     sim.step();
@@ -388,8 +390,28 @@ HybridTiming time_hybrid(sim::Simulation& sim, const par::Comm& comm, std::uint6
       ++t.awake_samples;
     }
   }
+  t.cost1 = sim.cost();
   t.wall = comm.max(std::chrono::duration<double>(Clock::now() - t1).count());
   return t;
+}
+
+/// The run's cost breakdown (sim/cost.h) of the timed steps, with the set-up's phases (build,
+/// relaxation) as they were when the timing began: "cost_s" in the line, the summary's table on
+/// stderr (rank 0). Collective.
+void add_cost_json(nlohmann::json& j, const HybridTiming& t, const par::Comm& comm) {
+  sim::RunCost d = t.cost1;
+  for (std::size_t k = 0; k < sim::kPhaseCount; ++k)
+    d.seconds[k] = k < sim::kFirstStepPhase ? t.cost0.seconds[k] : t.cost1.seconds[k] - t.cost0.seconds[k];
+  d.wall = t.cost1.wall - t.cost0.wall + t.cost0.setup();
+  d.steps = t.cost1.steps - t.cost0.steps;
+  d.rigid_steps = t.cost1.rigid_steps - t.cost0.rigid_steps;
+  d.particle_steps = t.cost1.particle_steps - t.cost0.particle_steps;
+  const sim::RunCost r = sim::reduce_cost(d, comm);
+  nlohmann::json c;
+  for (std::size_t k = 0; k < sim::kPhaseCount; ++k) c[sim::phase_info()[k].name] = r.seconds[k];
+  j["cost_s"] = c;
+  if (comm.rank() == 0)
+    std::fprintf(stderr, "bench hybrid: the timed steps, with the set-up before them:\n%s", sim::cost_table(r).c_str());
 }
 
 /// The ridge's part of the bench's line: the file, its settling again in the bench's world, and
@@ -507,6 +529,7 @@ nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt) 
   j["friction"] = s.material.friction;
   j["water_density"] = s.water.density;
   add_timing_json(j, t, sim, steps, comm);
+  add_cost_json(j, t, comm);
   j["setup_s"] = setup;
   j["peak_rss_mb"] = comm.max(u.ru_maxrss / 1024.0);
   j["ranks"] = comm.size();

@@ -69,6 +69,7 @@ constexpr std::uint64_t kMpiPollSteps = 16;
 struct PollResult {
   bool flush = false;
   int stop = 0;
+  double mpi_seconds = 0.0;  ///< wall time in the agreement's collective (the run's cost)
 };
 
 /// The loop's look at the world outside the simulation after step k: a SIGINT/SIGTERM received,
@@ -86,8 +87,11 @@ class LoopPoll {
     const auto now = Clock::now();
     double v[2] = {static_cast<double>(signals_.received()),
                    std::chrono::duration<double>(now - last_flush_).count() >= interval_ ? 1.0 : 0.0};
-    if (comm_.parallel()) comm_.max(v, 2);
     PollResult r;
+    if (comm_.parallel()) {
+      comm_.max(v, 2);
+      r.mpi_seconds = seconds_since(now);
+    }
     r.stop = static_cast<int>(v[0]);
     r.flush = v[1] > 0.0;
     if (r.flush) last_flush_ = now;
@@ -132,9 +136,56 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
         << ")"
         << (x.jointed_time > 0 ? ", then up to " + sci(x.jointed_time, 3) + " s with the joints between blocks held"
                                : std::string())
-        << "; not in the time estimate below\n";
+        << (x.lattice_time > 0 && s.blocks.conversion == "all_at_start"
+                ? ", then up to " + sci(x.lattice_time, 3) + " s of the converted lattices"
+                : std::string())
+        << "\n";
   else
     out << "relaxation:       off (joints and freeze bonds made at the blocks' starting poses)\n";
+}
+
+/// The relaxation before the freeze at its longest, s simulated (0: none).
+double longest_relaxation(const scene::Scene& s) {
+  const auto& x = s.blocks.relax;
+  if (!s.has_blocks || !x.enabled) return 0.0;
+  return x.max_time + x.jointed_time + (s.blocks.conversion == "all_at_start" ? x.lattice_time : 0.0);
+}
+
+/// What the run-time estimate counts for a scene built as `check` builds it.
+sim::CostInputs cost_inputs(const scene::Scene& s, const sim::Simulation& sim) {
+  sim::CostInputs in;
+  in.particles = static_cast<double>(sim.built().particles);
+  in.steps = sim.schedule().total_steps;
+  in.dt = sim.dt();
+  if (sim.has_blocks()) {
+    for (const auto& bi : sim.blocks().blocks) in.movable_blocks += bi.def.fixed ? 0 : 1;
+    in.rigid_dt = sim.hybrid().report().rigid_dt;
+    in.solver_iterations = s.blocks.solver_iterations;
+    in.relax_time = longest_relaxation(s);
+  }
+  return in;
+}
+
+/// `check`'s run-time estimate (sim::estimate_cost, one core): the run's particles and rigid world,
+/// the relaxation at its longest. Returns the total, s.
+double print_time_estimate(std::ostream& out, const scene::Scene& s, const sim::Simulation& sim) {
+  const sim::CostInputs in = cost_inputs(s, sim);
+  const sim::CostRates rates = sim::default_cost_rates();
+  const sim::CostEstimate e = sim::estimate_cost(in, rates);
+  out << "estimated time:   " << duration_text(e.total()) << " on one core: the run " << duration_text(e.run())
+      << " (particles " << duration_text(e.particles) << ": " << sci(in.particles * in.steps, 3)
+      << " particle-steps at ~" << sci(1.0 / rates.particle_step, 2) << "/s";
+  if (in.movable_blocks)
+    out << "; rigid world " << duration_text(e.rigid) << ": " << in.movable_blocks << " blocks x "
+        << sci(e.rigid_steps, 3) << " rigid steps x " << in.solver_iterations << " solver iterations at ~"
+        << sci(rates.block_iteration * 1e9, 2) << " ns";
+  out << "; output and the rest ~" << sci(100.0 * rates.output_share, 2) << " %)";
+  if (in.relax_time > 0)
+    out << " + the relaxation at most " << duration_text(e.relaxation()) << " (" << sci(in.relax_time, 3)
+        << " s simulated: particles " << duration_text(e.relax_particles) << ", rigid world "
+        << duration_text(e.relax_rigid) << ")";
+  out << "\n";
+  return e.total();
 }
 
 /// The output path is writable and is none of the scene's input files.
@@ -176,16 +227,11 @@ sim::Simulation build_for_check(const scene::Scene& s, const RunOptions& opt) {
       {.check_dt = false, .convert = false, .ignore_memory_limit = opt.ignore_memory_limit, .relax = false});
 }
 
-/// The particle-steps of the run: the initial particles times the steps (the run-time estimate's work).
-double particle_steps(const sim::Simulation& sim) {
-  return static_cast<double>(sim.built().particles) * static_cast<double>(sim.schedule().total_steps);
-}
-
 }  // namespace
 
 double estimated_core_seconds(const RunOptions& opt) {
   const scene::Scene s = scene::load_scene_file(opt.scene_path, opt.overrides);
-  return particle_steps(build_for_check(s, opt)) / kParticleStepsPerSecond;
+  return sim::estimate_cost(cost_inputs(s, build_for_check(s, opt))).total();
 }
 
 int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
@@ -197,7 +243,6 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
   const sim::Built& b = sim.built();
   const double dt = sim.dt(), crit = sim.critical_time_step();
   const sim::Schedule& sc = sim.schedule();
-  const double psteps = particle_steps(sim);
   const std::uint64_t rows = sc.total_steps / sc.output_every + 1;
   const std::uint64_t snaps = sc.snapshot_every ? sc.total_steps / sc.snapshot_every + 1 : 0;
   const double file_bytes = snaps * b.particles * (7 * 8 + 4 + 8) + rows * (8 * 16 + 6 * s.walls.size() * 8);
@@ -248,10 +293,9 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
     out << ")";
   }
   out << "; output file ~" << sci(file_bytes / 1048576.0, 3) << " MiB\n";
-  out << "estimated time:   " << duration_text(psteps / kParticleStepsPerSecond) << " (" << sci(psteps, 3)
-      << " particle-steps at ~" << sci(kParticleStepsPerSecond, 2) << "/s, one core)\n";
+  const double run_seconds = print_time_estimate(out, s, sim);
   out << "output:           " << (opt.output.empty() ? s.output : opt.output) << "\n";
-  warn_past_limits(err, psteps / kParticleStepsPerSecond, file_bytes, opt.output.empty() ? s.output : opt.output);
+  warn_past_limits(err, run_seconds, file_bytes, opt.output.empty() ? s.output : opt.output);
   sim.check_time_step();  // InputError at /time/dt, after the figures that explain it
   out << "ok\n";
   return 0;
@@ -351,6 +395,7 @@ namespace {
 /// where the output goes.
 struct RunInput {
   scene::Scene s;
+  double read_seconds = 0.0, calibration_seconds = 0.0;  ///< the run's cost: scene and checkpoint read, calibration
   sim::CalibratedIce ice;           ///< calibrate_ice(s), once for the run (warnings, build, run file)
   std::optional<Restart> restart;   ///< --restart: the checkpoint and the rows before it
   std::string out_path, ckpt_path;  ///< the run file and its checkpoint
@@ -378,10 +423,14 @@ OutputLocks lock_outputs(const RunOptions& opt, const RunInput& in, const std::o
 /// itself; it defaults to that run file). The output path is checked here, before the long work.
 RunInput load_run(const RunOptions& opt, const par::Comm& comm, std::FILE* progress) {
   RunInput in;
+  auto t = Clock::now();
   in.s = scene::load_scene_file(opt.scene_path, opt.overrides);
+  in.read_seconds = seconds_since(t);
   const scene::Scene& s = in.s;
   print_warnings(s.warnings, progress);
+  t = Clock::now();
   in.ice = sim::calibrate_ice(s);
+  in.calibration_seconds = seconds_since(t);
   print_warnings(in.ice.warnings, progress);
   std::optional<RestartFiles> from;
   if (!opt.restart.empty()) from = restart_files(opt.restart);
@@ -389,7 +438,9 @@ RunInput load_run(const RunOptions& opt, const par::Comm& comm, std::FILE* progr
   check_run_output(in.out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
   in.ckpt_path = io::checkpoint_path(in.out_path);
   in.locks = lock_outputs(opt, in, from, comm);  // exit 2 while another run writes any of them
+  t = Clock::now();
   if (from) in.restart = read_restart(opt.restart, s, comm);
+  in.read_seconds += seconds_since(t);
   if (sim::ridge_per_seed(in.s)) {  // the member's own ridge (docs/ridge.md, "A ridge per seed")
     const std::string out_dir = fs::absolute(fs::path(in.out_path)).parent_path().string();
     const sim::MemberRidge r =
@@ -442,9 +493,12 @@ struct LoopEnd {
 /// 3. loop: step, then the recorders (per-step sums; rows and snapshots when due), then the
 /// poll: a wall-clock flush when due, a graceful stop on SIGINT/SIGTERM (a checkpoint, the rows
 /// of that step). Closes the file; after an instability the last good state is kept first.
+/// Everything but the step (timed inside it) and the poll's collective is the run's output cost.
 LoopEnd run_loop(const RunOptions& opt, RunInput& in, sim::Simulation& sim, sim::Recorders& rec, io::RunFile& file,
                  const par::Comm& comm, const StopSignals& signals, std::FILE* progress) {
   const auto t0 = Clock::now();
+  sim::CostLedger& cost = sim.cost_ledger();
+  auto t_out = t0;  // the output phase's running start
   const std::uint64_t steps = sim.schedule().total_steps;
   ProgressLine bar(progress, in.s.time.duration, steps);
   LoopEnd end;
@@ -453,6 +507,8 @@ LoopEnd run_loop(const RunOptions& opt, RunInput& in, sim::Simulation& sim, sim:
     LoopPoll poll(comm, signals, opt.flush_interval);
     if (in.restart) {  // the state and the rows of the checkpoint; the loop goes on from its step
       end.last = apply_restart(*in.restart, sim, rec, file, progress);
+      cost.add(sim::Phase::Read, seconds_since(t_out));  // the checkpoint's state and rows
+      t_out = Clock::now();
       end.first = end.last;
       bar.start_at(end.last);
       std::fprintf(progress, "hybridsim: restarted from %s at step %llu (t = %s s)\n",
@@ -463,22 +519,40 @@ LoopEnd run_loop(const RunOptions& opt, RunInput& in, sim::Simulation& sim, sim:
       rec.write_initial(sim, file);  // row 0: the initial state
     }
     file.flush();
+    cost.add(sim::Phase::Output, seconds_since(t_out));
     for (std::uint64_t k = end.last + 1; k <= steps; ++k) {
       sim.step();                    // particles one DEM step; blocks every rigid step
+      t_out = Clock::now();
       rec.after_step(k, sim, file);  // sums and peaks; rows and snapshots when due
       bar.update(k, sim);            // progress line
       end.last = k;
       const PollResult p = poll.after_step(k, steps);
+      cost.add(sim::Phase::MpiWait, p.mpi_seconds);
+      double lap_mpi = p.mpi_seconds;  // in MpiWait, not in this lap's output
+      const auto end_lap = [&] {
+        cost.add(sim::Phase::Output, seconds_since(t_out) - lap_mpi);
+        lap_mpi = 0.0;
+        t_out = Clock::now();
+      };
+      // A checkpoint carries the output up to its own moment (CostLedger::output_lap).
+      const auto checkpoint = [&] {
+        end_lap();
+        cost.output_lap = t_out;
+        write_checkpoint(in.ckpt_path, in.s, sim, rec, file, comm, in.changes);
+        cost.output_lap.reset();
+      };
       if (p.stop) {  // finish here: a checkpoint, the rows (and snapshot) of this step, then close below
         end.stop = p.stop;
-        if (k < steps) write_checkpoint(in.ckpt_path, in.s, sim, rec, file, comm, in.changes);  // before write_stop's extra rows
+        if (k < steps) checkpoint();  // before write_stop's extra rows
         rec.write_stop(k, sim, file);
+        end_lap();
         break;
       }
       if (ckpt_every && k % ckpt_every == 0 && k < steps)
-        write_checkpoint(in.ckpt_path, in.s, sim, rec, file, comm, in.changes);
+        checkpoint();
       else if (p.flush)
         file.flush();
+      end_lap();
     }
   } catch (const SimulationError&) {
     bar.end();
@@ -492,8 +566,10 @@ LoopEnd run_loop(const RunOptions& opt, RunInput& in, sim::Simulation& sim, sim:
                  comm.rank(), ex.what(), file.writing_path().c_str());
     comm.abort(1);
   }
+  t_out = Clock::now();
   bar.end();
   file.close();
+  cost.add(sim::Phase::Output, seconds_since(t_out));
   end.wall = seconds_since(t0);
   return end;
 }
@@ -507,6 +583,7 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   // arrives between the two stops the loop at its first poll (step 1, or 16 under MPI), and one
   // after the last step lets the report finish, so a single signal never kills the process with
   // its run file open (a second one does: the handler is one-shot).
+  const auto t_start = Clock::now();  // the run's wall time (/analysis/cost) counts from here
   StopSignals signals;
   RunInput in = load_run(opt, comm, progress);  // 1. load
   const scene::Scene& s = in.s;
@@ -515,19 +592,28 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   std::optional<sim::Simulation> built = build_run(opt, in, comm, signals, t_setup, progress, stopped);  // 2. build
   if (!built) return stopped;
   sim::Simulation& sim = *built;
+  sim::CostLedger& cost = sim.cost_ledger();
+  cost.start = t_start;
+  cost.add(sim::Phase::Read, in.read_seconds);
+  cost.add(sim::Phase::Calibration, in.calibration_seconds);
+  const auto t_file = Clock::now();
   print_warnings(sim.warnings(), progress);
   io::RunFile file(in.out_path, run_file_meta(s, sim.built().calibrated, comm, opt.fsync, in.changes));
   sim::Recorders rec(sim, s, comm);
   rec.declare(file);
   const RunCounts start = print_setup(progress, s, sim, seconds_since(t_setup), comm);
+  cost.add(sim::Phase::Output, seconds_since(t_file));
   const LoopEnd end = run_loop(opt, in, sim, rec, file, comm, signals, progress);  // 3. loop
   if (end.stop)
     return report_stopped(end.stop, end.last, s, sim, end.wall, in.out_path, resume_command(opt, in.out_path, comm),
                           progress);
 
-  // 4. report: pieces, ISO beside the run, the hybrid outcome -> /analysis and the summary
+  // 4. report: pieces, ISO beside the run, the hybrid outcome, the cost -> /analysis and the summary
+  const auto t_analysis = Clock::now();
   const sim::RunFigures fig = rec.figures();
-  const sim::RunReport an = sim::analyse_run(sim, s, fig, comm);
+  sim::RunReport an = sim::analyse_run(sim, s, fig, comm);
+  cost.add(sim::Phase::Analysis, seconds_since(t_analysis));
+  an.cost = sim::reduce_cost(sim.cost(), comm);  // collective
   comm.barrier();  // every rank's close has completed before rank 0 reopens the file
   if (comm.rank() == 0) sim::write_analysis(in.out_path, an);
   print_summary(out, s, sim, fig, an, RunEnd{start, end.wall, in.out_path, end.first}, comm);

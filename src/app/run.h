@@ -39,9 +39,6 @@ struct RunOptions {
 /// Exit code of a run stopped by SIGINT/SIGTERM: 128 + the signal (130, 143).
 inline int stopped_exit_code(int sig) { return 128 + sig; }
 
-/// Assumed throughput for run-time estimates (one core, Release).
-inline constexpr double kParticleStepsPerSecond = 3e6;
-
 /// Loads, builds and runs the scene, writing the HDF5 run file. Under MPI every rank calls this
 /// (collective); each builds the scene, keeps its share, and all write the one file. Progress goes to `progress`
 /// (a single updating line when it is a terminal, a log line every ~10 s otherwise), the
@@ -52,9 +49,10 @@ inline constexpr double kParticleStepsPerSecond = 3e6;
 /// step are flushed and closed first).
 int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress);
 
-/// The run-time estimate `check` prints, in core-seconds: the scene's particle-steps (initial
-/// particles x steps) at kParticleStepsPerSecond. Loads and builds the scene as `check` does
-/// (blocks not converted, no relaxation: neither is in the estimate). Throws hs::InputError.
+/// The run-time estimate `check` prints, in core-seconds (sim::estimate_cost: the particles, the
+/// rigid world and the relaxation at its longest; particles made by conversions are not in it).
+/// Loads and builds the scene as `check` does (blocks not converted, no relaxation run). Throws
+/// hs::InputError.
 double estimated_core_seconds(const RunOptions& opt);
 
 /// Loads and builds the scene and prints the derived figures (counts, dt, estimates).

@@ -110,8 +110,6 @@ void print_blocks(std::ostream& out, const sim::RunStats& st, const sim::RunRepo
         << sci(an.rest_window, 3) << " s (" << sci(an.final_max_block_speed, 3) << " m/s at the last step), particle "
         << sci(an.final_mean_particle_speed, 3) << " m/s (" << sci(an.final_max_particle_speed, 3)
         << " m/s at the last step)\n";
-  out << "  time: bonded " << sci(r.seconds_bonded, 4) << " s, rigid " << sci(r.seconds_rigid, 4)
-      << " s, bridge " << sci(r.seconds_bridge, 4) << " s\n";
 }
 
 void print_pieces_and_iso(std::ostream& out, const sim::RunReport& an, const sim::RunFigures& f) {
@@ -230,6 +228,7 @@ void print_summary(std::ostream& out, const scene::Scene& s, const sim::Simulati
   if (st.has_blocks) print_blocks(out, st, an);
   print_pieces_and_iso(out, an, f);
   out << mpi.str();
+  out << sim::cost_table(an.cost);
   out << "  output: " << end.output << " (" << f.rows << " series rows, " << f.snapshots << " snapshots)\n";
 }
 

@@ -812,7 +812,7 @@ void Engine::rebuild() {
 
 void Engine::sync_before_forces() {
   bool need = need_rebuild_ || x_at_build_.size() != ps_.size();
-  if (parallel()) need = global_max(need ? 1.0 : 0.0) > 0.0;
+  if (parallel()) need = any_rank(need);
   if (need)
     rebuild();
   else if (parallel())
@@ -1004,7 +1004,7 @@ void Engine::step() {
   ++step_;
   const double half_skin = 0.5 * skin();
   bool rebuild_now = need_rebuild_ || disp2 > half_skin * half_skin;
-  if (parallel()) rebuild_now = global_max(rebuild_now ? 1.0 : 0.0) > 0.0;
+  if (parallel()) rebuild_now = any_rank(rebuild_now);
   if (rebuild_now)
     rebuild();
   else if (parallel())

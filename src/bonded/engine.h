@@ -541,6 +541,8 @@ class Engine {
   void check_blowup(std::uint32_t worst, double worst_v2, bool unstable_anywhere) const;
   double skin() const;
   double global_max(double v) const { return parallel() ? comm_->max(v) : v; }
+  /// Whether any rank says yes (the step's rebuild vote; its wait counts in comm_seconds).
+  bool any_rank(bool mine);
 
   EngineDef def_;
   ParticleStore ps_;

@@ -229,6 +229,13 @@ void Engine::maybe_balance(bool force) {
   ++pstats_.balances;
 }
 
+bool Engine::any_rank(bool mine) {
+  const auto t0 = SteadyClock::now();
+  const bool any = global_max(mine ? 1.0 : 0.0) > 0.0;
+  pstats_.comm_seconds += seconds_since(t0);
+  return any;
+}
+
 void Engine::exchange_full() {
   const auto t0 = SteadyClock::now();
   ++pstats_.exchanges;

@@ -312,9 +312,13 @@ void HybridSystem::step() {
     m.bonds.set_recording(last_before_rigid && policy);
     report_.seconds_bridge += seconds_since(tb);
   }
+  const bonded::ParallelStats& ps = engine_.parallel_stats();
+  const double force0 = ps.force_seconds, mpi0 = ps.comm_seconds;
   const auto t0 = Clock::now();
   engine_.step();
   report_.seconds_bonded += seconds_since(t0);
+  report_.seconds_bonded_force += ps.force_seconds - force0;
+  report_.seconds_bonded_mpi += ps.comm_seconds - mpi0;
   if (!world_) return;
   if (++m.since_rigid < report_.steps_per_rigid_step) return;
   m.since_rigid = 0;
@@ -331,8 +335,10 @@ void HybridSystem::step() {
     if (slot < m.bond_lin.size() && (!m.bond_lin[slot].isZero(0.0) || !m.bond_ang[slot].isZero(0.0)))
       m.coupler.add_about_centre(k, m.bond_lin[slot], m.bond_ang[slot]);
   }
+  const auto t1_mpi = Clock::now();  // the sync point: broken bonds and impulses summed over the ranks
   m.bonds_broken_synced += m.bonds.sync_broken(engine_.comm());
   m.coupler.sum_and_apply(engine_.comm(), *world_);
+  if (engine_.parallel()) report_.seconds_bridge_mpi += seconds_since(t1_mpi);
   report_.seconds_bridge += seconds_since(t1);
   const auto t2 = Clock::now();
   if (m.def.world.far_sleep.enabled && m.def.world.far_sleep.region_awake && m.def.mode == ConversionMode::Hybrid &&
@@ -353,13 +359,14 @@ void HybridSystem::step() {
   ++report_.rigid_steps;
   m.take_reference(*world_);
   report_.seconds_rigid += seconds_since(t2);
-  if (m.def.mode == ConversionMode::Hybrid && !m.freeze_pending) {
-    const auto t3 = Clock::now();
-    apply_policy();
-    report_.seconds_bridge += seconds_since(t3);
-  }
+  const auto t3 = Clock::now();
+  if (m.def.mode == ConversionMode::Hybrid && !m.freeze_pending) apply_policy();
   report_.blocks_now = world_->block_count();
-  report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());
+  const auto t4 = Clock::now();
+  report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());  // collective
+  const auto t5 = Clock::now();
+  if (engine_.parallel()) report_.seconds_bridge_mpi += std::chrono::duration<double>(t5 - t4).count();
+  report_.seconds_bridge += std::chrono::duration<double>(t5 - t3).count();
 }
 
 namespace {
@@ -471,20 +478,36 @@ void HybridSystem::apply_policy() {
   // convert, so that every rank's replicated world converts the same blocks. The block-particle
   // freeze bonds' forces are loads for the flexural criterion, and their stress over strength
   // counts in the freeze-bond criterion beside the joints'.
+  // Timed in parts (HybridReport): the gather and the broadcast (MPI waits under MPI; serial, the
+  // gather is a copy, counted with the stress estimates), the stress estimates, the decisions and
+  // the conversions.
   const par::Comm& comm = engine_.comm();
+  auto lap = Clock::now();
+  const auto add_lap = [&lap](double& to) {
+    const auto now = Clock::now();
+    to += std::chrono::duration<double>(now - lap).count();
+    lap = now;
+  };
   const ParticleSideLoads gathered = gather_particle_side_loads(comm, m.contact, m.bonds, m.ids.size());
+  if (comm.parallel()) add_lap(report_.seconds_bridge_mpi);
   std::vector<rigid::BlockId> to_convert;
   std::vector<int> governing;  // index into conversion_criteria()
   BlockLoads block;
   const bool decide_here = comm.rank() == 0;
-  // m.ids is the world's block list (slot order); k indexes it, the contact blocks and the loads.
+  // The stress estimates of the blocks in the region (m.ids is the world's block list, slot order;
+  // k indexes it, the contact blocks and the loads), then the decisions on them.
+  std::vector<std::pair<std::size_t, ConversionDecision>> estimates;
   for (std::size_t k = 0; decide_here && k < m.ids.size(); ++k) {
     const rigid::BlockId id = m.ids[k];
     if (world_->fixed(id)) continue;  // fixed blocks are walls and floors, not ice
     if (id.index < m.unconvertible.size() && m.unconvertible[id.index]) continue;
     if (!m.def.region.contains_block(sp, world_->position(id), world_->half_extents(id))) continue;
     collect_block_loads(*world_, id, k, gathered, block);
-    const ConversionDecision dec = evaluate_criteria(block, strengths);
+    estimates.emplace_back(k, evaluate_criteria(block, strengths));
+  }
+  add_lap(report_.seconds_stress);
+  for (const auto& [k, dec] : estimates) {
+    const rigid::BlockId id = m.ids[k];
     if (m.u_filtered.size() <= id.index) m.u_filtered.resize(id.index + 1, 0.0);
     double& u = m.u_filtered[id.index];
     const double tau = m.def.stress_time_constant;
@@ -495,12 +518,14 @@ void HybridSystem::apply_policy() {
       governing.push_back(dec.governing);
     }
   }
+  add_lap(report_.seconds_policy);
   if (comm.parallel()) {
     share_decisions(comm, to_convert, governing);
     double mu = report_.max_utilisation;
     comm.max(&mu, 1);
     report_.max_utilisation = mu;
   }
+  if (comm.parallel()) add_lap(report_.seconds_bridge_mpi);
   for (std::size_t k = 0; k < to_convert.size(); ++k) {
     try {
       convert(to_convert[k]);
@@ -513,6 +538,7 @@ void HybridSystem::apply_policy() {
     }
     count_conversion(report_, governing[k]);
   }
+  add_lap(report_.seconds_conversion);
 }
 
 ConversionReport HybridSystem::convert(rigid::BlockId id) {

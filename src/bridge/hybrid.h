@@ -91,7 +91,15 @@ struct HybridReport {
   double rigid_dt = 0.0;                  ///< s
   std::uint64_t steps_per_rigid_step = 0; ///< k
   double rigid_dt_limit = 0.0;            ///< the stability rule's bound, s
-  double seconds_rigid = 0.0, seconds_bonded = 0.0, seconds_bridge = 0.0;  ///< wall time
+  // Wall time of the step's parts on this rank since the freeze (the run's t = 0), s: a steady
+  // clock, a few reads per step (the run's cost breakdown, sim/cost.h). seconds_bonded is the
+  // engine's step, of it seconds_bonded_force its force evaluation and seconds_bonded_mpi its MPI
+  // waits (Engine::parallel_stats() before and after); seconds_rigid the rigid world's step;
+  // seconds_bridge the whole bridge, of it the conversion policy's stress estimates (the blocks'
+  // loads and criteria), its decisions, the conversions, and the bridge's MPI collectives.
+  double seconds_rigid = 0.0, seconds_bonded = 0.0, seconds_bridge = 0.0;
+  double seconds_bonded_force = 0.0, seconds_bonded_mpi = 0.0;
+  double seconds_stress = 0.0, seconds_policy = 0.0, seconds_conversion = 0.0, seconds_bridge_mpi = 0.0;
   double kinetic_energy_change = 0.0;     ///< sum over conversions of KE after - before, J
   std::uint64_t ice_bonds_created = 0;    ///< block-particle freeze bonds made at the start
   std::uint64_t block_bonds_handed_over = 0;  ///< block-particle bonds that became particle bonds

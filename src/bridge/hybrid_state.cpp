@@ -120,6 +120,10 @@ void HybridSystem::save_state(StateArchive& a, const std::string& p) const {
   const double rd[5] = {report_.max_utilisation, report_.seconds_rigid, report_.seconds_bonded,
                         report_.seconds_bridge, report_.kinetic_energy_change};
   a.put(p + "report_doubles", std::vector<double>(rd, rd + 5));
+  // The step's other wall times (HybridReport), a key of their own: a restart carries them on.
+  a.put(p + "report_seconds", std::vector<double>{report_.seconds_bonded_force, report_.seconds_bonded_mpi,
+                                                  report_.seconds_stress, report_.seconds_policy,
+                                                  report_.seconds_conversion, report_.seconds_bridge_mpi});
   if (!world_) return;
   world_->save_state(a, p + "rigid/");
   m.contact.save_state(a, p + "contact/");
@@ -155,6 +159,13 @@ std::size_t HybridSystem::load_state(const StateArchive& a, const std::string& p
   report_.seconds_bonded = rd[2];
   report_.seconds_bridge = rd[3];
   report_.kinetic_energy_change = rd[4];
+  if (a.has(p + "report_seconds")) {  // (a checkpoint without them restarts with them at zero)
+    const auto rs = a.get<double>(p + "report_seconds");
+    if (rs.size() != 6) throw std::runtime_error("hybrid checkpoint: report wall times of another version");
+    double* dst[6] = {&report_.seconds_bonded_force, &report_.seconds_bonded_mpi, &report_.seconds_stress,
+                      &report_.seconds_policy,       &report_.seconds_conversion, &report_.seconds_bridge_mpi};
+    for (int k = 0; k < 6; ++k) *dst[k] = rs[static_cast<std::size_t>(k)];
+  }
   if (!world_) {
     if (a.has(p + "rigid/blocks")) throw std::runtime_error("hybrid checkpoint: it has rigid blocks, the scene none");
     return 0;

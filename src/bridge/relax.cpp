@@ -263,7 +263,10 @@ void HybridSystem::freeze() {
   } else if (m.def.mode == ConversionMode::AllAtStart) {
     convert_all_at_start();
   }
-  report_.rigid_steps = 0;  // the run's, from t = 0
+  report_.rigid_steps = 0;  // the run's, from t = 0, and so are its wall times (the set-up is timed apart)
+  report_.seconds_rigid = report_.seconds_bonded = report_.seconds_bridge = 0.0;
+  report_.seconds_bonded_force = report_.seconds_bonded_mpi = 0.0;
+  report_.seconds_stress = report_.seconds_policy = report_.seconds_conversion = report_.seconds_bridge_mpi = 0.0;
   report_.blocks_now = world_->block_count();
   report_.peak_particles = std::max(report_.peak_particles, engine_.global_particle_count());
 }

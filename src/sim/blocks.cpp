@@ -7,6 +7,7 @@
 #include "sim/ridge_sheet.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <sstream>
 

@@ -12,6 +12,7 @@
 #include "sim/ridge_sheet.h"
 #include "io/ridge_file.h"
 
+#include <chrono>
 #include <algorithm>
 #include <cctype>
 #include <cmath>
@@ -313,9 +314,11 @@ Built build_engine(const scene::Scene& s, const CalibratedIce& ice, bool check_d
   // A ridge generated under floating plates: the sheet starts where the plates ended (lifted by
   // the keel's net buoyancy), so blocks and sheet start in contact and in equilibrium.
   if (s.has_blocks && !s.blocks.ridge_file_path.empty()) {
+    const auto t_read = std::chrono::steady_clock::now();
     auto r = std::make_shared<rigid::RidgeResult>(io::load_ridge(s.blocks.ridge_file_path));
     check_ridge_generation(*r, s, s.blocks.ridge_file_path);  // made with this run's ice (docs/ridge.md)
     out.ridge = std::move(r);
+    out.ridge_read_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_read).count();
   }
   const rigid::RidgeResult* ridge = out.ridge.get();
   const Vec3 half(0.5 * s.ice.length, 0.5 * s.ice.width, 0.5 * total_layers * c);

@@ -46,6 +46,7 @@ struct Built {
   /// The scene's ridge file as read (and checked against the scene) for the sheet's lift; null
   /// without one. block_setup takes it, so a build reads the file once.
   std::shared_ptr<const rigid::RidgeResult> ridge;
+  double ridge_read_seconds = 0.0;  ///< wall time reading and checking the ridge file (the run's cost)
 };
 // ---- structure ----
 /// The structure's mesh in its own frame (make_pier or the loaded file). InputError at

@@ -238,6 +238,34 @@ void write_relaxation(io::RunFileEditor& f, const bridge::RelaxReport& r, const 
                               "restart's), steps_run (DEM steps of relaxation this process ran: 0 unless computed)"));
 }
 
+/// /analysis/cost: one scalar dataset per phase (s; under MPI the mean over the ranks, the largest
+/// as the attribute max_over_ranks), the wall time and the counts (docs/output.md).
+void write_cost(io::RunFileEditor& f, const RunCost& c) {
+  const std::string g = "/analysis/cost";
+  f.add_group(g);
+  const auto& info = phase_info();
+  for (std::size_t k = 0; k < kPhaseCount; ++k) {
+    const std::string d = g + "/" + info[k].name;
+    f.add_scalar(d, c.seconds[k], "s", info[k].description);
+    if (c.ranks > 1) f.set_attribute(d, "max_over_ranks", c.max[k]);
+  }
+  f.add_scalar(g + "/wall", c.wall, "s",
+               "wall time of the run from the start of `hybridsim run` to the end of the analysis, every process "
+               "of a restarted run together; the phases add up to it but for the gaps between them");
+  if (c.ranks > 1) f.set_attribute(g + "/wall", "max_over_ranks", c.wall_max);
+  f.add_scalar(g + "/steps", static_cast<double>(c.steps), "1", "DEM steps of the run (t = 0 to its end)");
+  f.add_scalar(g + "/rigid_steps", static_cast<double>(c.rigid_steps), "1", "rigid steps of the run");
+  f.add_scalar(g + "/particle_steps", c.particle_steps, "1", "particles summed over the run's steps (all ranks)");
+  f.add_scalar(g + "/ranks", static_cast<double>(c.ranks), "1", "MPI ranks");
+  f.add_scalar(g + "/processes", static_cast<double>(c.processes), "1",
+               "processes that made the run: 1 + its restarts (each counted up to its last checkpoint)");
+  f.set_attribute(g, "description",
+                  std::string("wall time by phase (s, steady clock): set-up (read, calibration, build, relax_*, "
+                              "freeze), step (particle_*, rigid_world, bridge_*), output, mpi_wait, analysis; "
+                              "under MPI each dataset holds the mean over the ranks and max_over_ranks the "
+                              "largest; a restarted run's figures cover every process (docs/output.md)"));
+}
+
 /// /analysis/iso: the results, every input (flat value attributes as before, and per input a
 /// group /analysis/iso/inputs/<key> with value, unit, source and note), the DEM figures.
 void write_iso(io::RunFileEditor& f, const RunReport& a) {
@@ -300,6 +328,7 @@ void write_analysis(const std::string& path, const RunReport& a) {
   if (a.has_iso) write_iso(f, a);
   if (a.has_hybrid) write_hybrid(f, a);
   if (a.relax.ran) write_relaxation(f, a.relax, a.relax_origin);
+  write_cost(f, a.cost);
   f.flush();
 }
 

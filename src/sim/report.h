@@ -7,6 +7,7 @@
 #include "analysis/pieces.h"
 #include "bridge/hybrid.h"
 #include "scene/scene.h"
+#include "sim/cost.h"
 #include "sim/iso_inputs.h"
 #include "sim/recorder.h"
 #include "sim/simulation.h"
@@ -54,13 +55,16 @@ struct RunReport {
   /// The at-rest check's figures: the largest mean speed of a block, and of a particle, over the
   /// last rest_window s (m/s; RunFigures, recorders.cpp RestWindow); rest_window 0: not measured.
   double rest_window = 0.0, final_mean_block_speed = 0.0, final_mean_particle_speed = 0.0;
+  /// Wall time by phase, reduced over the ranks (the caller fills it after analyse_run, whose own
+  /// time it includes).
+  RunCost cost;
 };
 
 /// Analyses the finished run. Collective: every rank calls it; the particles and bonds are
 /// gathered on rank 0, which alone gets the pieces.
 RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFigures& f, const par::Comm& comm);
 
-/// Adds /analysis (pieces, iso, hybrid) to the closed run file. Rank 0 only.
+/// Adds /analysis (pieces, iso, hybrid, relaxation, cost) to the closed run file. Rank 0 only.
 void write_analysis(const std::string& path, const RunReport& r);
 
 }  // namespace hs::sim

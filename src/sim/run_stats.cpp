@@ -53,3 +53,31 @@ RunStats Simulation::run_stats() const {
 }
 
 }  // namespace hs::sim
+
+namespace hs::sim {
+
+RunCost Simulation::cost() const {
+  RunCost c;
+  c.seconds = cost_ledger_.seconds;
+  const bridge::HybridReport& r = hybrid().report();
+  const auto add = [&c](Phase p, double s) { c.seconds[static_cast<std::size_t>(p)] += s; };
+  add(Phase::ParticleForces, r.seconds_bonded_force);
+  add(Phase::ParticleOther, r.seconds_bonded - r.seconds_bonded_force - r.seconds_bonded_mpi);
+  add(Phase::RigidWorld, r.seconds_rigid);
+  add(Phase::BridgeCoupling,
+      r.seconds_bridge - r.seconds_stress - r.seconds_policy - r.seconds_conversion - r.seconds_bridge_mpi);
+  add(Phase::BridgeStress, r.seconds_stress);
+  add(Phase::BridgePolicy, r.seconds_policy);
+  add(Phase::BridgeConversion, r.seconds_conversion);
+  add(Phase::MpiWait, r.seconds_bonded_mpi + r.seconds_bridge_mpi);
+  c.max = c.seconds;
+  c.wall = cost_ledger_.wall_before + seconds_since(cost_ledger_.start);
+  c.wall_max = c.wall;
+  c.steps = step_count();
+  c.rigid_steps = r.rigid_steps;
+  c.particle_steps = cost_ledger_.particle_steps;
+  c.processes = cost_ledger_.processes_before + 1;
+  return c;
+}
+
+}  // namespace hs::sim

@@ -122,8 +122,10 @@ void relax_or_load(Simulation& sim, const scene::Scene& s, const par::Comm& comm
   RelaxationOrigin& origin = sim.relaxation_origin_;
   std::vector<std::string>& warnings = sim.blocks_.warnings;
   const RelaxationCacheDef& cache = opt.relaxation_cache;
+  CostLedger& cost = sim.cost_ledger_;
   nlohmann::json key;
   if (cache.enabled()) {
+    const auto t_read = CostClock::now();
     key = relaxation_key(s);
     if (const std::optional<StateArchive> a = find_relaxation(cache, key, comm, origin, warnings)) {
       // As a restart from a checkpoint at t = 0: the same freeze, then the state it left.
@@ -138,10 +140,22 @@ void relax_or_load(Simulation& sim, const scene::Scene& s, const par::Comm& comm
                                              "' does not fit the scene as built: " + ex.what());
       }
       for (std::string& w : relaxation_warnings(s, sim.blocks_.def.mode, h.relax_report())) warnings.push_back(w);
+      cost.add(Phase::Read, seconds_since(t_read));  // the relaxed state, read instead of run
       return;
     }
+    cost.add(Phase::Read, seconds_since(t_read));
   }
-  const bridge::RelaxReport& rep = h.relax(relax_def(s), opt.relax_progress);
+  // Each stage timed from one rigid step's report to the next; the freeze after the last.
+  auto lap = CostClock::now();
+  const bridge::RelaxProgressFn timed = [&](const RelaxProgress& p) {
+    const auto now = CostClock::now();
+    cost.add(p.stage == 3 ? Phase::RelaxLattice : p.stage == 2 ? Phase::RelaxJointed : Phase::RelaxRigid,
+             std::chrono::duration<double>(now - lap).count());
+    lap = now;
+    return opt.relax_progress && opt.relax_progress(p);
+  };
+  const bridge::RelaxReport& rep = h.relax(relax_def(s), timed);
+  cost.add(Phase::Freeze, seconds_since(lap));
   if (rep.stopped) throw RelaxationStopped(rep.time);
   origin.source = "computed";
   origin.steps_run = rep.steps;
@@ -150,24 +164,34 @@ void relax_or_load(Simulation& sim, const scene::Scene& s, const par::Comm& comm
     StateArchive a;
     e.save_state(a, "engine/");
     h.save_state(a, "hybrid/");
+    const auto t_write = CostClock::now();
     store_relaxation(cache, key, a, comm, origin, warnings);
+    cost.add(Phase::Output, seconds_since(t_write));
   }
 }
 
 Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const BuildOptions& opt) {
+  const auto t_build = CostClock::now();
   Simulation sim;
+  CostLedger& cost = sim.cost_ledger_;
   MemoryEstimate est = memory_estimate(s);
   if (!opt.ignore_memory_limit) check_memory(s, est, available_memory_bytes(), comm.size());
   // The scene's ice, once for the run: the engine's springs and bonds, the blocks' freeze and
   // conversion limits (Built::calibrated keeps it for the report and the run file).
   std::optional<CalibratedIce> own;
-  const CalibratedIce& ice = opt.calibrated ? *opt.calibrated : own.emplace(calibrate_ice(s));
+  if (!opt.calibrated) {
+    const auto t = CostClock::now();
+    own.emplace(calibrate_ice(s));
+    cost.add(Phase::Calibration, seconds_since(t));
+  }
+  const CalibratedIce& ice = opt.calibrated ? *opt.calibrated : *own;
   sim.built_ = build_engine(s, ice, opt.check_dt);
   // InputError when the ice starts inside the structure; a warning for shallow overlaps
   const std::string overlap = check_structure_overlap(sim.built_, s);
   bonded::Engine& e = *sim.built_.engine;
   const mesh::TriMesh* structure = sim.has_structure() ? &sim.built_.structure_mesh : nullptr;
   sim.blocks_ = block_setup(s, sim.built_.calibrated, structure, sim.built_.structure_radius, sim.built_.ridge.get());
+  cost.add(Phase::Read, sim.built_.ridge_read_seconds);
   if (!opt.ignore_memory_limit && !sim.blocks_.blocks.empty()) {  // before the rigid world and any conversion
     add_blocks(est, sim.blocks_, s.material.particle_diameter, s.walls.size());
     check_memory(s, est, available_memory_bytes(), comm.size());
@@ -183,12 +207,14 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
   sim.hybrid_ = std::make_unique<bridge::HybridSystem>(e, def, b.blocks, b.joints, b.ice_joints);
   if (relax) {
     if (opt.restart_state) {
+      const auto t = CostClock::now();
       try {
         sim.hybrid_->restore_relaxation(*opt.restart_state, "hybrid/");
       } catch (const std::exception& ex) {
         throw InputError("--restart", std::string("the checkpoint's relaxed ridge does not fit the scene as built: ") +
                                           ex.what());
       }
+      cost.add(Phase::Freeze, seconds_since(t));
       sim.relaxation_origin_.source = "checkpoint";
     } else {
       relax_or_load(sim, s, comm, opt);
@@ -198,6 +224,9 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
     e.distribute(comm, parallel_def(s));
   }
   sim.schedule_ = schedule(s.time, e.dt());
+  double timed = 0.0;  // the build is the rest of this function's time
+  for (std::size_t k = 0; k < kFirstStepPhase; ++k) timed += cost.seconds[k];
+  cost.add(Phase::Build, seconds_since(t_build) - timed);
   return sim;
 }
 

@@ -14,6 +14,7 @@
 #include "sim/blocks.h"
 #include "sim/build.h"
 #include "sim/relaxation_cache.h"
+#include "sim/cost.h"
 #include "sim/run_stats.h"
 
 #include <cstdint>
@@ -89,7 +90,10 @@ struct RelaxationStopped : std::runtime_error {
 class Simulation {
  public:
   /// One DEM step of the particles; the blocks advance every steps_per_rigid_step() of them.
-  void step() { hybrid_->step(); }
+  void step() {
+    hybrid_->step();
+    cost_ledger_.particle_steps += static_cast<double>(engine().particles().owned());
+  }
 
   bonded::Engine& engine() { return *built_.engine; }
   const bonded::Engine& engine() const { return *built_.engine; }
@@ -131,6 +135,15 @@ class Simulation {
   /// MPI: the particle and bond counts are summed over the ranks.
   RunStats run_stats() const;
 
+  // ---- cost (sim/cost.h) ----
+  /// The phases timed outside the step (set-up, output, the loop's MPI poll, analysis): the
+  /// builder and the run add to it; checkpoints carry it.
+  CostLedger& cost_ledger() { return cost_ledger_; }
+  const CostLedger& cost_ledger() const { return cost_ledger_; }
+  /// This rank's cost of the run so far: the ledger's phases with the step's parts from the
+  /// engine and the hybrid system; the wall time of every process, this one's up to now.
+  RunCost cost() const;
+
   // ---- checkpoints (simulation_checkpoint.cpp; docs/output.md, "Checkpoints") ----
   /// Writes the checkpoint of the state after the current step to `path`: every part's state
   /// (engine, hybrid system with its rigid world, recorders). Collective under MPI: rank 0
@@ -155,6 +168,7 @@ class Simulation {
   RelaxationOrigin relaxation_origin_;
   std::unique_ptr<bridge::HybridSystem> hybrid_;
   Schedule schedule_;
+  CostLedger cost_ledger_;
 };
 
 /// The relaxation before the freeze of a built simulation whose hybrid system waits for it: loaded

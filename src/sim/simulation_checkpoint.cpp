@@ -52,6 +52,7 @@ void Simulation::save_checkpoint(const std::string& path, const io::CheckpointMe
   engine().save_state(a, "engine/");
   hybrid().save_state(a, "hybrid/");
   rec.save_state(a);
+  cost_ledger_.save(a);
   const std::vector<StateArchive> all = gather_states(std::move(a), comm);
   if (comm.parallel() && comm.rank() != 0) return;
   io::CheckpointMeta meta = identity;
@@ -69,6 +70,7 @@ std::size_t Simulation::load_checkpoint(const StateArchive& state, Recorders& re
   engine().load_state(state, "engine/");
   const std::size_t lost = hybrid().load_state(state, "hybrid/");
   rec.load_state(state, *this);
+  cost_ledger_.add_saved(state);  // the processes before this one: added to this one's set-up
   return lost;
 }
 
@@ -76,6 +78,7 @@ std::size_t Simulation::load_checkpoint(const std::vector<StateArchive>& all, Re
   const std::size_t lost = hybrid().load_state_union(all, "hybrid/");
   engine().load_state_union(all, "engine/");
   rec.load_state(all.front(), *this);
+  cost_ledger_.add_saved_union(all.data(), all.size(), comm().rank());
   return lost;
 }
 

@@ -79,7 +79,9 @@ using hs::testing::datasets;
 
 /// Wall-clock figures inside a checkpoint: the only entries two identical runs may differ in.
 bool is_timing(const std::string& key) {
-  return key.find("parallel_stats") != std::string::npos || key.find("report_doubles") != std::string::npos;
+  return key.find("parallel_stats") != std::string::npos || key.find("report_doubles") != std::string::npos ||
+         key.find("report_seconds") != std::string::npos || key.find("cost/seconds") != std::string::npos ||
+         key.find("cost/figures") != std::string::npos;
 }
 
 using hs::testing::expect_same_series;
