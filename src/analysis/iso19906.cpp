@@ -162,6 +162,8 @@ void validate_iso_inputs(const IsoInputs& in, const std::string& base_path) {
                "a larger youngs_modulus");
 }
 
+double dem_over_iso(double dem_peak, const IsoResult& r) { return r.F_total > 0 ? dem_peak / r.F_total : 0.0; }
+
 IsoResult compute_iso(const IsoInputs& in) {
   validate_iso_inputs(in);
   using std::cos;

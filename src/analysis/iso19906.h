@@ -96,6 +96,11 @@ void validate_iso_inputs(const IsoInputs& in, const std::string& base_path = "")
 /// The Croasdale & Cammaert level-ice load and Dolgopolov keel load. Validates first.
 IsoResult compute_iso(const IsoInputs& in);
 
+/// The simulated peak over the ISO load it is judged against: peak / F_total (= F_H + F_K, the
+/// ridge load; F_H alone when there is no keel, F_K = 0); 0 when F_total is not positive.
+/// Every DEM/ISO ratio a run reports uses it, so a keel's term is never left out.
+double dem_over_iso(double dem_peak, const IsoResult& r);
+
 /// Reads a plain JSON object whose keys are the IsoInputs field names (numbers, SI units);
 /// missing keys keep their defaults. Unknown keys (with a did-you-mean hint), non-numbers and
 /// invalid values are hs::InputError naming `base_path + "/<key>"`. `base_path` is where the

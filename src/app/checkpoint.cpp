@@ -84,8 +84,8 @@ std::string scene_identity(const scene::Scene& s, std::string* canonical_text) {
   return io::text_hash(text);
 }
 
-Restart read_restart(const std::string& arg, const scene::Scene& s, const par::Comm& comm) {
-  Restart r;
+RestartFiles restart_files(const std::string& arg) {
+  RestartFiles r;
   const fs::path p(arg);
   static const std::regex ckpt(R"((.*)\.ckpt)");
   std::smatch m;
@@ -99,6 +99,14 @@ Restart read_restart(const std::string& arg, const scene::Scene& s, const par::C
     r.run_file = arg;
     r.checkpoint_file = io::checkpoint_path(arg);
   }
+  return r;
+}
+
+Restart read_restart(const std::string& arg, const scene::Scene& s, const par::Comm& comm) {
+  Restart r;
+  const RestartFiles files = restart_files(arg);
+  r.run_file = files.run_file;
+  r.checkpoint_file = files.checkpoint_file;
   if (!fs::exists(r.run_file) && r.run_file != arg)
     throw InputError("--restart", "no run file '" + r.run_file + "' beside the checkpoint '" + arg + "'");
   if (!fs::exists(r.checkpoint_file))

@@ -54,6 +54,14 @@ struct Restart {
   std::size_t carried_changes = 0;  ///< how many of `changes` came with the checkpoint
 };
 
+/// The run file and the checkpoint that --restart `arg` names (a run file "out.h5", its partial
+/// name, or "out.ckpt.h5"), without reading them.
+struct RestartFiles {
+  std::string run_file;         ///< may be a partial name
+  std::string checkpoint_file;
+};
+RestartFiles restart_files(const std::string& arg);
+
 /// Reads the checkpoint of `arg` (a run file "out.h5", its partial name, or "out.ckpt.h5") and
 /// the run file's series rows up to it. hs::InputError("--restart", ...) (exit 2) when there is
 /// no checkpoint, it was written for another scene (the first differing JSON path is named), or

@@ -6,6 +6,7 @@
 
 #include "analysis/iso19906.h"
 #include "app/checkpoint.h"
+#include "app/output_lock.h"
 #include "app/output_path.h"
 #include "app/metrics_command.h"
 #include "app/progress.h"
@@ -197,6 +198,9 @@ int check_scene(const RunOptions& opt, std::ostream& out, std::ostream& err) {
     if (std::isfinite(s.bonds.compressive_strength_ratio))
       out << "; in compression " << sci(s.bonds.compressive_strength_ratio * ci.bond_tensile_strength, 4)
           << " Pa = bonds.compressive_strength_ratio " << s.bonds.compressive_strength_ratio << " x";
+    if (s.bonds.strength_spread > 0)
+      out << "; each lattice bond's strengths x a factor of its own, lognormal of mean 1 and sd "
+          << s.bonds.strength_spread << ", seed " << s.seed;
     out << ")\n";
   }
   out << "walls:            " << s.walls.size() << "\n";
@@ -331,7 +335,23 @@ struct RunInput {
   std::optional<Restart> restart;   ///< --restart: the checkpoint and the rows before it
   std::string out_path, ckpt_path;  ///< the run file and its checkpoint
   std::vector<std::string> changes; ///< Restart::changes (none without a restart)
+  OutputLocks locks;                ///< the output and its checkpoint, held for the run's lifetime
 };
+
+/// Locks the run file and its checkpoint, and (with --restart) the run being continued, so that a
+/// run writing any of them is refused here, before anything is read or written. A restart's own
+/// run is locked while this run lasts: nothing else may continue it or write into it meanwhile.
+OutputLocks lock_outputs(const RunOptions& opt, const RunInput& in, const std::optional<RestartFiles>& from,
+                         const par::Comm& comm) {
+  const std::string out_option = !opt.output.empty() ? "-o" : from ? "--restart" : "/output";
+  std::vector<LockedFile> files{{in.out_path, "the output file", out_option},
+                                {in.ckpt_path, "the output's checkpoint", out_option}};
+  if (from) {
+    files.push_back({io::strip_partial(from->run_file), "the restarted run's file", "--restart"});
+    files.push_back({from->checkpoint_file, "the restarted run's checkpoint", "--restart"});
+  }
+  return OutputLocks(files, comm);
+}
 
 /// 1. load: the scene file, --set overrides applied, validated; with --restart the checkpoint and
 /// the rows before it, read before anything is created (the output may be the restarted file
@@ -343,10 +363,13 @@ RunInput load_run(const RunOptions& opt, const par::Comm& comm, std::FILE* progr
   print_warnings(s.warnings, progress);
   in.ice = sim::calibrate_ice(s);
   print_warnings(in.ice.warnings, progress);
-  if (!opt.restart.empty()) in.restart = read_restart(opt.restart, s, comm);
-  in.out_path = !opt.output.empty() ? opt.output : in.restart ? io::strip_partial(in.restart->run_file) : s.output;
+  std::optional<RestartFiles> from;
+  if (!opt.restart.empty()) from = restart_files(opt.restart);
+  in.out_path = !opt.output.empty() ? opt.output : from ? io::strip_partial(from->run_file) : s.output;
   check_run_output(in.out_path, opt.scene_path, s);  // before the long work: exit 2, file untouched
   in.ckpt_path = io::checkpoint_path(in.out_path);
+  in.locks = lock_outputs(opt, in, from, comm);  // exit 2 while another run writes any of them
+  if (from) in.restart = read_restart(opt.restart, s, comm);
   if (in.restart) in.changes = in.restart->changes;
   for (std::size_t k = in.restart ? in.restart->carried_changes : 0; k < in.changes.size(); ++k)
     std::fprintf(progress, "hybridsim: restart changes %s\n", in.changes[k].c_str());

@@ -135,8 +135,17 @@ void print_pieces_and_iso(std::ostream& out, const sim::RunReport& an, const sim
         << " m" << src("keel_depth") << "): H_B " << sci(r.H_B, 4) << ", H_P " << sci(r.H_P, 4) << ", H_R "
         << sci(r.H_R, 4) << ", H_L " << sci(r.H_L, 4) << ", H_T " << sci(r.H_T, 4) << ", F_K " << sci(r.F_K, 4)
         << " N\n";
-    out << "  DEM peak horizontal force " << sci(f.peak_h, 4) << " N vs ISO F_H " << sci(r.F_H, 4)
-        << " N: DEM/ISO = " << sci(r.F_H > 0 ? f.peak_h / r.F_H : 0.0, 3);
+    if (r.F_K > 0) {  // a ridge: judged against the ridge load, the level-ice term beside it
+      out << "  DEM peak horizontal force " << sci(f.peak_h, 4) << " N vs ISO F_H + F_K " << sci(r.F_total, 4)
+          << " N: DEM/ISO = " << sci(analysis::dem_over_iso(f.peak_h, r), 3) << " (vs F_H alone "
+          << sci(r.F_H > 0 ? f.peak_h / r.F_H : 0.0, 3) << ")";
+      if (an.has_iso_frozen)
+        out << "\n  ISO with the keel frozen at the cone base (" << sci(an.iso_frozen_depth, 3) << " m): F_H + F_K "
+            << sci(an.iso_frozen.F_total, 4) << " N, DEM/ISO = " << sci(analysis::dem_over_iso(f.peak_h, an.iso_frozen), 3);
+    } else {
+      out << "  DEM peak horizontal force " << sci(f.peak_h, 4) << " N vs ISO F_H " << sci(r.F_H, 4)
+          << " N: DEM/ISO = " << sci(analysis::dem_over_iso(f.peak_h, r), 3);
+    }
     if (an.iso_F_H_top_particle > 0)
       out << " (with the highest particle as h_r, " << sci(f.max_pile, 4) << " m: F_H "
           << sci(an.iso_F_H_top_particle, 4) << " N, DEM/ISO = " << sci(f.peak_h / an.iso_F_H_top_particle, 3)

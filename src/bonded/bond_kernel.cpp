@@ -30,6 +30,7 @@ void BondBatch::pack(const std::vector<Bond>& bonds) {
     rix[k] = b.ref.ri.x(); riy[k] = b.ref.ri.y(); riz[k] = b.ref.ri.z();
     rjx[k] = b.ref.rj.x(); rjy[k] = b.ref.rj.y(); rjz[k] = b.ref.rj.z();
     cw[k] = b.ref.c.w(); cx[k] = b.ref.c.x(); cy[k] = b.ref.c.y(); cz[k] = b.ref.c.z();
+    strength[k] = b.strength;
   }
   finish(0);
 }
@@ -58,7 +59,7 @@ void BondBatch::erase(const std::vector<BrokenBond>& gone) {
          }) == gone.end() && "strictly ascending indices");
   for (auto* a : {&i, &j}) erase_sorted(*a, n_, gone);
   erase_sorted(kind, n_, gone);
-  for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) erase_sorted(*a, n_, gone);
+  for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz, &strength}) erase_sorted(*a, n_, gone);
   n_ -= gone.size();
   size_arrays();
   finish(gone.front().index / kLanes);
@@ -68,7 +69,7 @@ void BondBatch::size_arrays() {
   const std::size_t padded = (n_ + kLanes - 1) / kLanes * kLanes;
   for (auto* a : {&i, &j}) a->resize(padded);
   kind.resize(padded);
-  for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz}) a->resize(padded);
+  for (auto* a : {&rix, &riy, &riz, &rjx, &rjy, &rjz, &cw, &cx, &cy, &cz, &strength}) a->resize(padded);
 }
 
 void BondBatch::finish(std::size_t first_batch) {
@@ -78,6 +79,7 @@ void BondBatch::finish(std::size_t first_batch) {
     rix[k] = rix[n_ - 1]; riy[k] = riy[n_ - 1]; riz[k] = riz[n_ - 1];
     rjx[k] = rjx[n_ - 1]; rjy[k] = rjy[n_ - 1]; rjz[k] = rjz[n_ - 1];
     cw[k] = cw[n_ - 1]; cx[k] = cx[n_ - 1]; cy[k] = cy[n_ - 1]; cz[k] = cz[n_ - 1];
+    strength[k] = strength[n_ - 1];
   }
   batch_kind.resize(padded() / kLanes);
   for (std::size_t g = first_batch; g < batch_kind.size(); ++g) {
@@ -314,7 +316,7 @@ void bond_kernel(const BondBatch& bb, const ParallelBondParams* params, std::siz
         tau = o.tau[l];
         crush = o.crush[l];
       }
-      const BondFailure mode = bond_failure(pk, sigma, tau, crush);
+      const BondFailure mode = bond_failure(pk, sigma, tau, crush, bb.strength[k]);
       if (mode != BondFailure::None) {
         broken.push_back({static_cast<std::uint32_t>(k), mode});
         continue;

@@ -57,6 +57,7 @@ class BondBatch {
   std::vector<std::uint8_t> kind;
   std::vector<double> rix, riy, riz, rjx, rjy, rjz;  ///< BondRef::ri, BondRef::rj
   std::vector<double> cw, cx, cy, cz;                ///< BondRef::c
+  std::vector<double> strength;                      ///< Bond::strength
   /// Per batch: the kind shared by all its lanes, or 0xff when they mix.
   std::vector<std::uint8_t> batch_kind;
 

@@ -130,10 +130,12 @@ struct BondResult {
 /// How a bond fails, if it does: tension first, then shear, then compression.
 enum class BondFailure : std::uint8_t { None, Tension, Shear, Compression };
 
-inline BondFailure bond_failure(const ParallelBondParams& p, double sigma, double tau, double crush) {
-  if (sigma > p.sigma_c) return BondFailure::Tension;
-  if (tau > p.tau_c) return BondFailure::Shear;
-  if (crush > p.sigma_cc) return BondFailure::Compression;
+/// `strength`: the bond's factor on the three strengths (Bond::strength; 1 exactly multiplies by 1).
+inline BondFailure bond_failure(const ParallelBondParams& p, double sigma, double tau, double crush,
+                                double strength = 1.0) {
+  if (sigma > p.sigma_c * strength) return BondFailure::Tension;
+  if (tau > p.tau_c * strength) return BondFailure::Shear;
+  if (crush > p.sigma_cc * strength) return BondFailure::Compression;
   return BondFailure::None;
 }
 

@@ -51,6 +51,7 @@ void Engine::add_bond(GlobalId a, GlobalId b, BondKind kind) {
   Bond bd;
   bd.i = i; bd.j = j; bd.gi = gi; bd.gj = gj; bd.kind = kind;
   bd.ref = BondRef::at_rest(ps_.x[i], ps_.q[i], ps_.radius[i], ps_.x[j], ps_.q[j], ps_.radius[j]);
+  bd.strength = bond_strength(gi, gj, kind);
   bonds_.push_back(bd);
   ++ps_.bond_count[i];
   ++ps_.bond_count[j];
@@ -1053,7 +1054,7 @@ std::size_t Engine::overloaded_bond_count(BondKind kind) const {
     if (b.kind != kind) continue;
     const BondKinematics k{ps_.x[b.i], ps_.x[b.j], ps_.q[b.i], ps_.q[b.j], ps_.v[b.i], ps_.v[b.j], ps_.omega[b.i], ps_.omega[b.j]};
     const BondResult r = parallel_bond(p, b.ref, k);
-    n += bond_failure(p, r.sigma, r.tau, r.crush) != BondFailure::None;
+    n += bond_failure(p, r.sigma, r.tau, r.crush, b.strength) != BondFailure::None;
   }
   return n;
 }

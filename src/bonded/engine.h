@@ -16,6 +16,7 @@
 
 #include "bond_kernel.h"
 #include "bond_parallel.h"
+#include "bond_strength_spread.h"
 #include "mesh/sphere_mesh_contact.h"
 #include "contact_law.h"
 #include "particle_store.h"
@@ -71,6 +72,9 @@ struct EngineDef {
   /// figure, not derived from the limit: a limit is a check, and changing it (on a restart, say)
   /// must not change the physics.
   double crushed_set_depth = 0.25;
+  /// Scatter of the lattice bonds' strengths (bond_strength_spread.h): each lattice bond's
+  /// strengths are bond[Lattice]'s times its factor Bond::strength. Spread 0: every factor is 1.
+  BondStrengthSpread lattice_strength_spread;
 };
 
 /// What a force source sees of the force evaluation it takes part in.
@@ -162,6 +166,9 @@ struct Bond {
   GlobalId gi, gj;       ///< gi < gj: canonical order, so results do not depend on storage order
   BondKind kind;
   BondRef ref;
+  /// Multiplies the kind's strengths sigma_c, tau_c, sigma_cc (EngineDef::lattice_strength_spread):
+  /// a function of the ids, set wherever a bond is made (Engine::bond_strength), never stored.
+  double strength = 1.0;
 };
 
 /// Scratch of the bond sort at a rebuild (engine.cpp, sort_bonds_by_particle), kept between
@@ -525,6 +532,11 @@ class Engine {
   void wall_kernel_impl(const Law& law);
   const double* pair_smeff();
   void bond_forces();
+  /// Bond::strength of the bond (gi, gj) of `kind`: its lattice_strength_spread factor for a
+  /// lattice bond, 1 for any other.
+  double bond_strength(GlobalId gi, GlobalId gj, BondKind kind) const {
+    return kind == BondKind::Lattice ? bond_strength_factor(def_.lattice_strength_spread, gi, gj) : 1.0;
+  }
   void kick_half();
   void check_blowup(std::uint32_t worst, double worst_v2, bool unstable_anywhere) const;
   double skin() const;

@@ -181,6 +181,7 @@ void Engine::insert_distributed(const LatticeInsert& lat, const std::vector<Glob
     bd.kind = lat.kind;
     // The store keeps normalised orientations: the same reference frame as add_bond makes.
     bd.ref = BondRef::at_rest(a.x, a.q.normalized(), a.radius, b.x, b.q.normalized(), b.radius);
+    bd.strength = bond_strength(bd.gi, bd.gj, bd.kind);
     bonds_.push_back(bd);
   }
   // Attached bonds: the existing particle has the lower id (new ids come after every id in use),
@@ -199,6 +200,7 @@ void Engine::insert_distributed(const LatticeInsert& lat, const std::vector<Glob
     bd.j = ParticleStore::kNone;
     bd.kind = at.kind;
     bd.ref = BondRef::at_rest(ps_.x[i], ps_.q[i], ps_.radius[i], b.x, b.q.normalized(), b.radius);
+    bd.strength = bond_strength(bd.gi, bd.gj, bd.kind);
     bonds_.push_back(bd);
   }
   redistribute();  // new ghosts, every new bond bound to both ends, bond counts

@@ -408,6 +408,7 @@ void Engine::unpack_migration(const Bytes& in) {
     b.gj = w.gj;
     b.kind = static_cast<BondKind>(w.kind);
     b.ref = w.ref;
+    b.strength = bond_strength(b.gi, b.gj, b.kind);  // from the ids: nothing to send
     bonds_.push_back(b);
   }
   const auto nh = rd.get<std::uint32_t>();

@@ -241,7 +241,10 @@ void Engine::load_state(const StateArchive& a, const std::string& p) {
   s.advance_gid(sc.next_gid);
   s.rebuild_index();
   bonds_.clear();
-  for (const BondRecord& r : a.get<BondRecord>(p + "bonds")) bonds_.push_back(from_record(r));
+  for (const BondRecord& r : a.get<BondRecord>(p + "bonds")) {
+    bonds_.push_back(from_record(r));
+    bonds_.back().strength = bond_strength(r.gi, r.gj, bonds_.back().kind);  // from the ids, as when made
+  }
   a.get_into(p + "pairs", pairs_);
   const auto wall_points = a.get<Vec3>(p + "wall_points");
   if (wall_points.size() != walls_.size()) throw std::runtime_error("engine checkpoint: another number of walls");
@@ -379,6 +382,7 @@ void Engine::load_state_union(const std::vector<StateArchive>& all, const std::s
   wall_hist_ = std::move(wall_hist);
   for (const BondRecord& r : bond_records) {
     Bond b = from_record(r);
+    b.strength = bond_strength(b.gi, b.gj, b.kind);
     b.i = ps_.local(b.gi);
     b.j = ps_.local(b.gj);
     if (b.i == ParticleStore::kNone || b.j == ParticleStore::kNone)

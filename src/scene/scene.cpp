@@ -21,7 +21,7 @@ namespace {
 // The one list of keys per object; docs/scene.schema.json mirrors it (checked by a test).
 const std::map<std::string, std::vector<std::string>>& schema_keys() {
   static const std::map<std::string, std::vector<std::string>> k = {
-      {"", {"name", "description", "output", "time", "material", "bonds", "water", "gravity", "ice", "walls",
+      {"", {"name", "description", "output", "seed", "time", "material", "bonds", "water", "gravity", "ice", "walls",
             "structure", "analysis", "stability", "parallel", "blocks", "ridge"}},
       {"/time", {"duration", "dt", "dt_alpha", "output_interval", "snapshot_interval", "checkpoint_interval"}},
       {"/material",
@@ -30,7 +30,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/bonds",
        {"tensile_strength", "shear_strength", "damping_ratio", "radius_ratio", "freeze_tensile_strength",
         "freeze_shear_strength", "freeze_strength_fraction", "compressive_strength_ratio",
-        "crushed_contact", "crushed_set_depth"}},
+        "crushed_contact", "crushed_set_depth", "strength_spread"}},
       {"/water", {"enabled", "level", "density", "linear_drag_per_area", "drag_coefficient", "current", "linear_drag"}},
       {"/ice", {"type", "thickness", "length", "width", "origin", "consolidated_layer"}},
       {"/ice/consolidated_layer", {"thickness", "width", "center_x"}},
@@ -112,6 +112,8 @@ void read_top(const JsonObject& root, Scene& s) {
   s.description = root.string("description", "", false, "free text");
   s.output = root.string("output", s.name + ".h5", false, "the output HDF5 file, e.g. \"run.h5\"");
   if (s.output.empty()) throw InputError("/output", "must not be empty; give a file name such as \"run.h5\"");
+  s.seed = root.integer<std::uint64_t>("seed", 0, JsonRange::non_negative(), "",
+                                       "a whole number >= 0, e.g. 7 (the ensemble member)");
 }
 
 }  // namespace
@@ -214,6 +216,9 @@ void read_bonds(const JsonObject& root, Scene& s) {
   b.crushed_set_depth = o.number("crushed_set_depth", b.crushed_set_depth, {0.0, 1.0, true, true}, "",
                                  "overlap / smaller radius beyond which a broken bond's contact keeps a permanent "
                                  "set, e.g. 0.25");
+  b.strength_spread = o.number("strength_spread", b.strength_spread, Range::non_negative(), "",
+                               "relative standard deviation of each lattice bond's strengths (lognormal, mean "
+                               "the bond strength), e.g. 0.2; 0 = every bond alike");
   b.strength_given = o.has("tensile_strength") || o.has("shear_strength");
   // "calibrated" derives the bond strength from material.flexural_strength: both at once would be
   // two answers to one question.

@@ -78,6 +78,9 @@ struct BondsDef {
   /// pushes back only beyond that depth, bonded::EngineDef::crushed_set) or "elastic".
   std::string crushed_contact = "set";
   double crushed_set_depth = 0.25;  ///< h / smaller radius (bonded::EngineDef::crushed_set_depth)
+  /// Relative standard deviation of each lattice bond's strengths, drawn per bond from a lognormal
+  /// of mean 1 under Scene::seed (bonded/bond_strength_spread.h); 0 = every bond alike.
+  double strength_spread = 0.0;
   bool strength_given = false;             ///< tensile_strength or shear_strength was in the scene
 };
 
@@ -235,6 +238,10 @@ struct Scene {
   std::string name;
   std::string description;
   std::string output;              ///< output file; default "<name>.h5"
+  /// The ensemble member: every random draw of the run (bonds.strength_spread) is a hash of this
+  /// seed and what is drawn for, so two runs with one seed are identical and two seeds are two
+  /// realisations. Absent = 0. A scene with no random option draws nothing and ignores it.
+  std::uint64_t seed = 0;
   TimeDef time;
   MaterialDef material;
   BondsDef bonds;

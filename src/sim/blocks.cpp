@@ -125,10 +125,8 @@ RidgeKeel ridge_keel(const rigid::RidgeResult& r, const std::string& path) {
 
 /// The ridge file's blocks inside keep_x / keep_y (and its sail unless keep_sail is false),
 /// shifted by the offset, with their joints to each other and to the ice sheet.
-void add_ridge_blocks(BlockSetup& out, const scene::Scene& s) {
+void add_ridge_blocks(BlockSetup& out, const scene::Scene& s, const rigid::RidgeResult& r) {
   const auto& b = s.blocks;
-  const rigid::RidgeResult r = io::load_ridge(b.ridge_file_path);
-  check_ridge_generation(r, s, b.ridge_file_path);  // made with this run's ice (docs/ridge.md)
   out.ridge_blocks_in_file = r.blocks.size();
   out.ridge = ridge_keel(r, b.ridge_file_path);
   std::vector<long> kept(r.blocks.size(), -1);  // ridge row -> index in out.blocks
@@ -246,7 +244,7 @@ BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, do
 }
 
 BlockSetup block_setup(const scene::Scene& s, const CalibratedIce& ice, const mesh::TriMesh* structure,
-                       double structure_radius) {
+                       double structure_radius, const rigid::RidgeResult* ridge) {
   BlockSetup out;
   out.def = hybrid_def(s, ice);
   if (!s.has_blocks) return out;
@@ -256,7 +254,12 @@ BlockSetup block_setup(const scene::Scene& s, const CalibratedIce& ice, const me
     out.def.structure = kinematic_structure(s.structure, *structure);
   }
   if (!s.blocks.ridge_file_path.empty()) {
-    add_ridge_blocks(out, s);
+    std::optional<rigid::RidgeResult> own;
+    if (!ridge) {
+      ridge = &own.emplace(io::load_ridge(s.blocks.ridge_file_path));
+      check_ridge_generation(*ridge, s, s.blocks.ridge_file_path);  // made with this run's ice (docs/ridge.md)
+    }
+    add_ridge_blocks(out, s, *ridge);
     if (s.blocks.loose_blocks == "drop") drop_loose_blocks(out);
   }
   for (const auto& it : s.blocks.list)

@@ -8,10 +8,15 @@
 #include "sim/calibrated_ice.h"
 #include "sim/iso_inputs.h"
 
+#include <memory>
 #include <optional>
 
 #include <string>
 #include <vector>
+
+namespace hs::rigid {
+struct RidgeResult;
+}
 
 namespace hs::sim {
 
@@ -31,9 +36,10 @@ struct BlockSetup {
 /// `structure_radius` its widest radius (the default conversion region). A scene without a
 /// "blocks" section gives an empty block list (no rigid world). `ice`: calibrate_ice(s), computed
 /// once for the run (the freeze strengths and the conversion's flexural and crushing limits come
-/// from it); without it, computed here.
+/// from it); without it, computed here. `ridge`: the scene's ridge file as the build read it
+/// (Built::ridge, so the file is read once per build); null: read here when the scene has one.
 BlockSetup block_setup(const scene::Scene& s, const CalibratedIce& ice, const mesh::TriMesh* structure,
-                       double structure_radius);
+                       double structure_radius, const rigid::RidgeResult* ridge = nullptr);
 BlockSetup block_setup(const scene::Scene& s, const mesh::TriMesh* structure, double structure_radius);
 
 /// Whether a block (centre, half extents) starting there would reach into a parametric pier

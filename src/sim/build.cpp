@@ -68,6 +68,7 @@ bonded::EngineDef engine_def(const scene::Scene& s, const CalibratedIce& ci) {
   d.limits.max_overlap_ratio = s.stability.max_overlap_ratio;
   d.crushed_set = b.crushed_contact == "set";
   d.crushed_set_depth = b.crushed_set_depth;
+  d.lattice_strength_spread = {b.strength_spread, s.seed};
   return d;
 }
 
@@ -311,11 +312,12 @@ Built build_engine(const scene::Scene& s, const CalibratedIce& ice, bool check_d
   const double box_bottom = g.box_bottom;
   // A ridge generated under floating plates: the sheet starts where the plates ended (lifted by
   // the keel's net buoyancy), so blocks and sheet start in contact and in equilibrium.
-  std::optional<rigid::RidgeResult> ridge;
   if (s.has_blocks && !s.blocks.ridge_file_path.empty()) {
-    ridge = io::load_ridge(s.blocks.ridge_file_path);
-    check_ridge_generation(*ridge, s, s.blocks.ridge_file_path);
+    auto r = std::make_shared<rigid::RidgeResult>(io::load_ridge(s.blocks.ridge_file_path));
+    check_ridge_generation(*r, s, s.blocks.ridge_file_path);  // made with this run's ice (docs/ridge.md)
+    out.ridge = std::move(r);
   }
+  const rigid::RidgeResult* ridge = out.ridge.get();
   const Vec3 half(0.5 * s.ice.length, 0.5 * s.ice.width, 0.5 * total_layers * c);
   const Pose pose{Vec3(s.ice.origin[0] + half.x(), s.ice.origin[1] + half.y(), box_bottom + half.z()),
                   Quat::Identity()};

@@ -43,6 +43,9 @@ struct Built {
   /// The ice as the lattice has it (springs, E, nu, flexural/tensile and bond strengths and where
   /// they came from): calibrate_ice(scene), what engine_def used; for ISO and the conversion.
   CalibratedIce calibrated;
+  /// The scene's ridge file as read (and checked against the scene) for the sheet's lift; null
+  /// without one. block_setup takes it, so a build reads the file once.
+  std::shared_ptr<const rigid::RidgeResult> ridge;
 };
 // ---- structure ----
 /// The structure's mesh in its own frame (make_pier or the loaded file). InputError at

@@ -226,10 +226,14 @@ void set_keel_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& 
         "/analysis/keel_depth (ISO: below the consolidated layer)");
   } else if (m.ridge) {
     keel_top_depth = m.ridge->layer_bottom_depth;
-    in.set("keel_depth", &analysis::IsoInputs::keel_depth, std::max(0.0, m.ridge->keel_depth - m.ridge->layer_bottom_depth),
+    const bool frozen = m.keel_depth_limit && *m.keel_depth_limit < m.ridge->keel_depth;
+    const double depth = frozen ? *m.keel_depth_limit : m.ridge->keel_depth;
+    in.set("keel_depth", &analysis::IsoInputs::keel_depth, std::max(0.0, depth - m.ridge->layer_bottom_depth),
         IsoSource::RidgeFile,
-        "keel depth " + json_fmt(m.ridge->keel_depth) + " m below the waterline minus the consolidated layer's "
-            "underside at " + json_fmt(m.ridge->layer_bottom_depth) + " m, " + m.ridge->path);
+        "keel depth " + json_fmt(m.ridge->keel_depth) + " m below the waterline" +
+            (frozen ? " frozen at " + json_fmt(depth) + " m (the cone base)" : std::string()) +
+            " minus the consolidated layer's underside at " + json_fmt(m.ridge->layer_bottom_depth) + " m, " +
+            m.ridge->path);
   } else {
     in.set("keel_depth", &analysis::IsoInputs::keel_depth, 0.0, IsoSource::Default, "no keel");
   }
@@ -252,6 +256,11 @@ void set_keel_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& 
 }
 
 }  // namespace
+
+double cone_base_depth(const scene::Scene& s) {
+  const double level = s.water.enabled ? s.water.level : 0.0;
+  return level - (s.structure.position.z() + s.structure.pier.cone_bottom_z);
+}
 
 IsoAssembly assemble_iso_inputs(const scene::Scene& s, const IsoMeasured& m) {
   if (!s.has_structure)

@@ -64,7 +64,15 @@ struct IsoMeasured {
   std::optional<double> rubble_height;  ///< peak of /series/pile_height_mean, m
   std::optional<RidgeKeel> ridge;
   std::optional<CalibratedIce> calibrated;  ///< the lattice's E, nu, flexural strength ("calibrated" model)
+  /// m below the waterline: the ridge file's keel counts down to this depth only, the ISO load
+  /// "frozen" at that keel depth (the paper's Fig. 7 freezes it at the cone base, 4 m: the keel
+  /// below meets the shaft). Absent: the whole keel.
+  std::optional<double> keel_depth_limit;
 };
+
+/// Depth of the pier's cone base (its widest section) below the waterline, m: where the paper's
+/// "frozen" ISO estimate stops the keel (IsoMeasured::keel_depth_limit).
+double cone_base_depth(const scene::Scene& s);
 
 struct IsoAssembly {
   analysis::IsoInputs in;

@@ -104,6 +104,15 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
           an.has_iso = false;
           an.iso_note = "ISO 19906 estimate not computed: input " + r.key + " is not finite";
         }
+      if (an.has_iso && m.ridge && m.ridge->keel_depth > cone_base_depth(s)) {  // the keel frozen at the cone base
+        m.keel_depth_limit = cone_base_depth(s);
+        const analysis::IsoResult fr = analysis::compute_iso(assemble_iso_inputs(s, m).in);
+        if (std::isfinite(fr.F_total)) {
+          an.has_iso_frozen = true;
+          an.iso_frozen_depth = *m.keel_depth_limit;
+          an.iso_frozen = fr;
+        }
+      }
       if (an.has_iso) {  // beside it: F_H with the old pile height, the highest particle
         analysis::IsoInputs top = an.iso_in;
         top.rubble_height = f.max_pile;
@@ -243,7 +252,14 @@ void write_iso(io::RunFileEditor& f, const RunReport& a) {
   f.set_attribute(g, "dem_peak_horizontal_force", a.dem_peak);
   f.set_attribute(g, "dem_max_pile_height", a.max_pile);
   if (a.has_pile_mean) f.set_attribute(g, "dem_max_pile_height_mean", a.max_pile_mean);
-  f.set_attribute(g, "dem_over_iso", a.iso.F_H > 0 ? a.dem_peak / a.iso.F_H : 0.0);
+  f.set_attribute(g, "dem_over_iso", analysis::dem_over_iso(a.dem_peak, a.iso));
+  f.set_attribute(g, "dem_over_iso_F_H", a.iso.F_H > 0 ? a.dem_peak / a.iso.F_H : 0.0);
+  if (a.has_iso_frozen) {
+    f.set_attribute(g, "keel_frozen_depth", a.iso_frozen_depth);
+    f.set_attribute(g, "keel_frozen_F_K", a.iso_frozen.F_K);
+    f.set_attribute(g, "keel_frozen_F_total", a.iso_frozen.F_total);
+    f.set_attribute(g, "dem_over_iso_keel_frozen", analysis::dem_over_iso(a.dem_peak, a.iso_frozen));
+  }
   if (a.iso_F_H_top_particle > 0) {
     f.set_attribute(g, "F_H_top_particle_pile", a.iso_F_H_top_particle);
     f.set_attribute(g, "dem_over_iso_top_particle_pile", a.dem_peak / a.iso_F_H_top_particle);
@@ -251,8 +267,11 @@ void write_iso(io::RunFileEditor& f, const RunReport& a) {
   f.set_attribute(g, "description",
                   std::string("ISO 19906 (Croasdale & Cammaert + Dolgopolov keel) load for the run's ice; inputs "
                               "and their sources in inputs/; rubble_height = peak of /series/pile_height_mean "
-                              "unless the scene gives one; F_H_top_particle_pile = F_H with the highest particle "
-                              "(dem_max_pile_height) as the pile height instead; forces in N"));
+                              "unless the scene gives one; dem_over_iso = dem_peak_horizontal_force / F_total (F_H + F_K, "
+                              "the ridge load), dem_over_iso_F_H against the level-ice term alone; keel_frozen_* = the "
+                              "estimate with the keel frozen at the cone base (keel_frozen_depth below the waterline); "
+                              "F_H_top_particle_pile = F_H with the highest particle (dem_max_pile_height) as the pile "
+                              "height instead; forces in N"));
 }
 
 }  // namespace

@@ -32,6 +32,11 @@ struct RunReport {
   /// of the ISO-consistent one, for comparison; 0 when not computed.
   double iso_F_H_top_particle = 0.0;
   std::string iso_note;        ///< why there is no ISO estimate (a pier scene whose inputs ISO refuses)
+  /// The estimate with the ridge file's keel frozen at the cone base (IsoMeasured::keel_depth_limit,
+  /// the paper's Fig. 7 "frozen at 4 m"): only when the keel reaches deeper than the cone base.
+  bool has_iso_frozen = false;
+  double iso_frozen_depth = 0.0;  ///< m below the waterline, cone_base_depth
+  analysis::IsoResult iso_frozen;
   double dem_peak = 0.0;       ///< N, peak horizontal force on the structure (output-row means)
   double max_pile = 0.0;       ///< m, peak of /series/pile_height (highest particle)
   bool has_pile_mean = false;

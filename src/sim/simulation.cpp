@@ -77,7 +77,7 @@ Simulation build_simulation(const scene::Scene& s, const par::Comm& comm, const 
   const std::string overlap = check_structure_overlap(sim.built_, s);
   bonded::Engine& e = *sim.built_.engine;
   const mesh::TriMesh* structure = sim.has_structure() ? &sim.built_.structure_mesh : nullptr;
-  sim.blocks_ = block_setup(s, sim.built_.calibrated, structure, sim.built_.structure_radius);
+  sim.blocks_ = block_setup(s, sim.built_.calibrated, structure, sim.built_.structure_radius, sim.built_.ridge.get());
   if (!opt.ignore_memory_limit && !sim.blocks_.blocks.empty()) {  // before the rigid world and any conversion
     add_blocks(est, sim.blocks_, s.material.particle_diameter, s.walls.size());
     check_memory(s, est, available_memory_bytes(), comm.size());

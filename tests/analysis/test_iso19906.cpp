@@ -164,6 +164,21 @@ TEST(Iso19906, TotalHorizontalFH) {
   EXPECT_NEAR(r.F_total, r.F_H + r.F_K, kRel * r.F_total);
 }
 
+// A ridge's simulated peak is judged against the ridge load F_H + F_K (the paper's Fig. 7), not
+// against the level-ice term alone: the report and the run summary both take dem_over_iso.
+TEST(Iso19906, DemOverIsoIsAgainstTheRidgeLoad) {
+  const IsoResult r = compute_iso(paper_case());
+  ASSERT_GT(r.F_K, 0.1 * r.F_H);  // the paper case has a keel
+  const double peak = 0.7 * r.F_total;
+  EXPECT_DOUBLE_EQ(dem_over_iso(peak, r), peak / (r.F_H + r.F_K));
+  EXPECT_LT(dem_over_iso(peak, r), 0.95 * peak / r.F_H);  // leaving F_K out would read higher
+  IsoInputs level = paper_case();
+  level.keel_depth = 0.0;
+  const IsoResult l = compute_iso(level);
+  EXPECT_EQ(dem_over_iso(peak, l), peak / l.F_H);  // no keel: F_K = 0, the same yardstick
+  EXPECT_EQ(dem_over_iso(peak, IsoResult{}), 0.0);
+}
+
 TEST(Iso19906, KeelPlugFK) {
   const Hand hand;
   EXPECT_NEAR(compute_iso(paper_case()).F_K, hand.F_K, kRel * hand.F_K);

@@ -129,6 +129,24 @@ TEST(IsoInputs, RidgeSceneTakesTheKeelBelowTheConsolidatedLayerAndThePorosityFro
   EXPECT_GT(hs::analysis::compute_iso(full).F_K, 1.1 * hs::analysis::compute_iso(a.in).F_K);  // measured 1.17
 }
 
+// The paper's Fig. 7 "frozen at 4 m": the keel counts down to the cone base only.
+TEST(IsoInputs, AKeelFrozenAtTheConeBaseStopsThere) {
+  IsoMeasured m;
+  m.thickness = 0.98;
+  m.rubble_height = 0.3;
+  m.ridge = keel_8m();
+  const hs::scene::Scene s = hs::scene::parse_scene(pier_scene());
+  EXPECT_EQ(hs::sim::cone_base_depth(s), 4.0);  // the default pier: cone base at z = -4 m
+  m.keel_depth_limit = hs::sim::cone_base_depth(s);
+  const IsoAssembly a = assemble(pier_scene(), m);
+  EXPECT_NEAR(a.in.keel_depth, 4.0 - 0.80, 1e-15);  // the cone base minus the layer's underside
+  m.keel_depth_limit.reset();
+  const IsoAssembly full = assemble(pier_scene(), m);
+  EXPECT_LT(hs::analysis::compute_iso(a.in).F_K, 0.6 * hs::analysis::compute_iso(full.in).F_K);
+  m.keel_depth_limit = 20.0;  // deeper than the keel: the whole keel
+  EXPECT_EQ(assemble(pier_scene(), m).in.keel_depth, full.in.keel_depth);
+}
+
 TEST(IsoInputs, SceneValuesOverrideTheRunAndTheRidgeFile) {
   json j = pier_scene();
   j["analysis"]["keel_depth"] = 3.0;

@@ -70,6 +70,7 @@ TEST(Scene, DefaultsFromAMinimalScene) {
   EXPECT_DOUBLE_EQ(s.material.effective_stiffness(), kPi * 1e9 * 0.5 / 12.0);  // paper Eq. 1
   EXPECT_EQ(s.bonds.damping_ratio, 0.1);
   EXPECT_EQ(s.bonds.radius_ratio, 1.0);
+  EXPECT_EQ(s.bonds.strength_spread, 0.0);
   EXPECT_TRUE(s.water.enabled);
   EXPECT_EQ(s.water.density, 1025.0);
   EXPECT_EQ(s.gravity, Vec3(0, 0, -9.81));
@@ -173,6 +174,19 @@ TEST(Scene, OverridesSetFieldsParsedAsJsonElseString) {
   EXPECT_EQ(j["ice"]["consolidated_layer"]["thickness"], 2);
   EXPECT_EQ(j["walls"][0]["velocity"][0], -0.4);
   EXPECT_EQ(j["water"]["enabled"], false);
+}
+
+TEST(Scene, SeedIsAWholeNumberDefaultZeroAndSettable) {
+  EXPECT_EQ(scene::parse_scene(minimal()).seed, 0u);
+  json j = minimal();
+  scene::apply_override(j, "seed=7");
+  EXPECT_EQ(scene::parse_scene(j).seed, 7u);
+  scene::apply_override(j, "seed=18446744073709551615");  // 2^64 - 1, read exactly
+  EXPECT_EQ(scene::parse_scene(j).seed, 18446744073709551615ull);
+  expect_bad("/seed", -1, "/seed", "e.g. 7");
+  expect_bad("/seed", 1.5, "/seed", "e.g. 7");
+  expect_bad("/seed", "seven", "/seed", "number");
+  expect_bad("/bonds/strength_spread", -0.1, "/bonds/strength_spread", "e.g. 0.2");
 }
 
 // ---------------------------------------------------------------- malformed scenes

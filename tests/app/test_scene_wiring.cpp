@@ -32,7 +32,9 @@ const char* const kScene = R"({
                "restitution": 0.413, "friction": 0.347, "contact_model": "hertz", "tensile_strength": 4.31e5},
   "bonds": {"tensile_strength": 6.173e5, "shear_strength": 4.729e5, "damping_ratio": 0.1379, "radius_ratio": 0.8713,
             "freeze_tensile_strength": 2.311e4, "freeze_shear_strength": 1.877e4,
-            "compressive_strength_ratio": 7.31, "crushed_contact": "elastic", "crushed_set_depth": 0.377},
+            "compressive_strength_ratio": 7.31, "crushed_contact": "elastic", "crushed_set_depth": 0.377,
+            "strength_spread": 0.1931},
+  "seed": 4243,
   "water": {"level": 0.0713, "density": 1031.7, "linear_drag_per_area": 1237.1, "drag_coefficient": 0.8317,
             "current": [0.0317, -0.0211, 0.0043]},
   "gravity": [0.0131, -0.0173, -9.7937],
@@ -125,6 +127,8 @@ TEST(SceneWiring, EngineDefCarriesEverySetting) {
   }
   EXPECT_FALSE(d.crushed_set);  // "elastic"
   EXPECT_EQ(d.crushed_set_depth, 0.377);
+  EXPECT_EQ(d.lattice_strength_spread.spread, 0.1931);
+  EXPECT_EQ(d.lattice_strength_spread.seed, 4243u);
   EXPECT_TRUE(d.water.enabled);
   EXPECT_EQ(d.water.level, 0.0713);
   EXPECT_EQ(d.water.density, 1031.7);

@@ -269,3 +269,59 @@ TEST(Stop, UnstableRunEndsWithTheLastGoodStateAsASnapshot) {
       for (const double a : read(h5, s)) ASSERT_TRUE(std::isfinite(a)) << s;
   }
 }
+
+// (5) One writer per output (docs/output.md, "Where the file is written"): while a run writes
+// lock.h5 and lock.ckpt.h5, a second run on the same -o, and a --restart of that run, are refused
+// with exit 2 before they write anything, naming the running process (its PID and command line).
+// The first run's files are its own when it ends; after it, the same command is accepted.
+TEST(Stop, ASecondRunOnAnOutputInUseIsRefusedNamingTheProcess) {
+  write("long.json", long_scene().dump());
+  for (const char* f : {"lock.h5", "lock.ckpt.h5", "lock.h5.lock", "lock.ckpt.h5.lock"}) fs::remove(work_dir() / f);
+  const Child first =
+      start("lock", "long.json -o lock.h5 --set time.checkpoint_interval=0.05", "TERM:loop:1000000000");
+  ASSERT_GT(first.pid, 0);
+  // Running once its first checkpoint is written (step ~1040).
+  for (int k = 0; k < 600 && !fs::exists(work_dir() / "lock.ckpt.h5"); ++k) usleep(100000);
+  ASSERT_TRUE(fs::exists(work_dir() / "lock.ckpt.h5")) << first.err();
+  const std::string pid = std::to_string(first.pid);
+  for (const std::string args : {"long.json -o lock.h5 --set time.duration=0.01", "long.json --restart lock.h5"}) {
+    const auto second = hs::testing::run_hybridsim(work_dir(), args);
+    EXPECT_EQ(second.rc, 2) << args << "\n" << second.err;
+    EXPECT_NE(second.err.find("is in use by another running hybridsim: process " + pid + " ("), std::string::npos)
+        << args << "\n" << second.err;
+    EXPECT_NE(second.err.find("long.json -o lock.h5"), std::string::npos) << "the holder's command line\n"
+                                                                          << second.err;
+    EXPECT_NE(second.err.find("lock.h5.lock"), std::string::npos) << second.err;
+  }
+  // Nothing of the refused runs: the only partial file is the first run's.
+  for (const auto& e : fs::directory_iterator(work_dir())) {
+    const std::string name = e.path().filename().string();
+    if (name.rfind("lock.partial-", 0) == 0) {
+      EXPECT_EQ(name.rfind("lock.partial-" + pid + ".", 0), 0u) << name;
+    }
+  }
+  ASSERT_EQ(kill(first.pid, SIGTERM), 0);
+  ASSERT_EQ(wait_for(first), 143) << first.err();
+  const long long k = number_after(first.err(), "after step");
+  expect_contiguous_rows(work_dir() / "lock.h5", k);  // every row of the first run, up to its stop
+  EXPECT_TRUE(fs::exists(work_dir() / "lock.ckpt.h5"));
+  EXPECT_FALSE(fs::exists(work_dir() / "lock.h5.lock")) << "a run that returns removes its lock files";
+  EXPECT_FALSE(fs::exists(work_dir() / "lock.ckpt.h5.lock"));
+  const auto again = hs::testing::run_hybridsim(work_dir(), "long.json -o lock.h5 --set time.duration=0.01");
+  EXPECT_EQ(again.rc, 0) << again.err;
+}
+
+// A run killed outright (SIGKILL) leaves its lock file but no lock: the kernel released it with
+// the process, and the next run on that output takes it over.
+TEST(Stop, AKilledRunsLockFileDoesNotHoldTheOutput) {
+  write("long.json", long_scene().dump());
+  fs::remove(work_dir() / "killed.h5");
+  const Child c = start("killed", "long.json -o killed.h5", "KILL:loop:200");
+  ASSERT_GT(c.pid, 0);
+  EXPECT_EQ(wait_for(c), -SIGKILL) << c.err();
+  EXPECT_TRUE(fs::exists(work_dir() / "killed.h5.lock"));
+  const auto next = hs::testing::run_hybridsim(work_dir(), "long.json -o killed.h5 --set time.duration=0.01");
+  EXPECT_EQ(next.rc, 0) << next.err;
+  EXPECT_FALSE(fs::exists(work_dir() / "killed.h5.lock"));
+  fs::remove(work_dir() / ("killed.partial-" + std::to_string(c.pid) + ".h5"));
+}

@@ -2,10 +2,13 @@
 // (central finite differences), swapping the particles changes nothing, and the bond
 // breaks exactly at its strength.
 #include "bonded/bond_parallel.h"
+#include "bonded/bond_strength_spread.h"
 #include "bonded/engine.h"
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
 #include <random>
 
 using namespace hs;
@@ -220,5 +223,74 @@ TEST(ParallelBond, EngineBreaksTheBondAtTheStretchTheStrengthGives) {
       e.compute_forces();
       EXPECT_EQ(e.bonds().size(), f < 1.0 ? 1u : 0u) << (shear ? "shear" : "tension") << " at " << f << " u_c";
     }
+  }
+}
+
+// ---------------------------------------------------------------- bond strength spread
+
+// The factors follow the stated lognormal: over n = 1e5 bonds (pairs of consecutive ids) the
+// sample mean is 1 and the sample standard deviation is the spread. Standard errors at c = 0.3:
+// mean c / sqrt(n) = 9.5e-4, sd ~ c sqrt((kurtosis - 1) / 4n) ~ 1.2e-3 (lognormal kurtosis ~4.6 at
+// c = 0.3); the tolerances are 4 standard errors. Measured at seed 7: mean 0.99995 and 0.99977, sd 0.09984
+// and 0.29939 (c = 0.1, 0.3).
+TEST(BondStrengthSpread, SampleMeanAndSdAreTheStatedOnes) {
+  for (const double c : {0.1, 0.3}) {
+    const BondStrengthSpread d{c, 7};
+    const int n = 100000;
+    double sum = 0.0, sum2 = 0.0, lo = INFINITY;
+    for (int k = 0; k < n; ++k) {
+      const double s = bond_strength_factor(d, static_cast<GlobalId>(k), static_cast<GlobalId>(k + 1));
+      sum += s;
+      sum2 += s * s;
+      lo = std::min(lo, s);
+    }
+    const double mean = sum / n, sd = std::sqrt((sum2 - n * mean * mean) / (n - 1));
+    EXPECT_NEAR(mean, 1.0, 4.0 * c / std::sqrt(double(n))) << "c = " << c;
+    EXPECT_NEAR(sd, c, 4.0 * c * std::sqrt(3.6 / (4.0 * n))) << "c = " << c;
+    EXPECT_GT(lo, 0.0) << "a lognormal factor is positive";
+  }
+}
+
+// A draw is a function of (seed, the pair) only: the same for either order of the ids and on
+// every call, another for another seed; spread 0 gives exactly 1.
+TEST(BondStrengthSpread, SameSeedSameBondsAnotherSeedOthers) {
+  const BondStrengthSpread a{0.2, 1}, b{0.2, 2};
+  int differing = 0;
+  for (GlobalId k = 0; k < 1000; ++k) {
+    EXPECT_EQ(bond_strength_factor(a, k, k + 13), bond_strength_factor(a, k + 13, k));
+    EXPECT_EQ(bond_strength_factor(a, k, k + 13), bond_strength_factor(BondStrengthSpread{0.2, 1}, k, k + 13));
+    differing += bond_strength_factor(a, k, k + 13) != bond_strength_factor(b, k, k + 13);
+    EXPECT_EQ(bond_strength_factor(BondStrengthSpread{0.0, 1}, k, k + 13), 1.0);
+  }
+  EXPECT_EQ(differing, 1000);
+}
+
+// The engine breaks a lattice bond at its own strength, the kind's times the bond's factor: the
+// stretch test above at 0.999 and 1.001 of s u_c, for the factor s its ids draw.
+TEST(BondStrengthSpread, EngineBreaksEachBondAtItsOwnStrength) {
+  const double kn = 1e8, strength = 1e6, A = 0.19634954084936207;
+  const BondStrengthSpread spread{0.3, 11};
+  const double s = bond_strength_factor(spread, 0, 1);
+  ASSERT_GT(std::abs(s - 1.0), 0.01) << "the test needs a factor away from 1";
+  for (const double f : {0.999, 1.001}) {
+    bonded::EngineDef d;
+    d.gravity = Vec3::Zero();
+    d.contact.kn = d.contact.kt = kn;
+    d.bond[0] = ParallelBondParams::from_stiffness(kn, kn, 0.25, strength, INFINITY, 0, 1, 1);
+    d.lattice_strength_spread = spread;
+    Engine e(d);
+    ParticleInit a;
+    a.radius = 0.25;
+    a.mass = 100.0;
+    ParticleInit b = a;
+    b.x = Vec3(0.5, 0, 0);
+    e.add_particle(a);
+    e.add_particle(b);
+    e.add_bond(0, 1);
+    ASSERT_EQ(e.bonds().front().strength, s);
+    auto& ps = e.particles();
+    ps.x[ps.local(1)] += Vec3(f * s * strength * A / kn, 0, 0);
+    e.compute_forces();
+    EXPECT_EQ(e.bonds().size(), f < 1.0 ? 1u : 0u) << "at " << f << " s u_c, s = " << s;
   }
 }
