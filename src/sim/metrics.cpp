@@ -30,9 +30,11 @@ struct LoadHistory {
 LoadHistory read_load(const io::RunFileReader& f, const std::string& path) {
   const std::string g = kLoadPerStepGroup;
   if (!f.has(g + "/time") || !f.has(g + "/force"))
-    throw InputError(path, "no per-step load (" + g +
-                               "): the run file of a scene without a structure, or of a hybridsim that did not "
-                               "write it; run the scene again to get its metrics");
+    throw InputError(path, !f.has("/series/structure_position")
+                               ? "the run has no structure: the metrics are of the load on a structure "
+                                 "(docs/metrics.md)"
+                               : "no per-step load (" + g + "): written by a hybridsim without it; run the scene "
+                                 "again with this one to get the metrics");
   LoadHistory h;
   h.t = f.doubles(g + "/time");
   const std::vector<double> F = f.doubles(g + "/force");
