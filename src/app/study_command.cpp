@@ -4,11 +4,11 @@
 #include "app/study_runner.h"
 #include "app/text.h"
 #include "common/error.h"
-#include "git_commit.h"
 #include "io/run_file_read.h"
 #include "io/table_file.h"
 #include "json/reader.h"
 #include "scene/scene.h"
+#include "sim/build_identity.h"
 #include "sim/metrics.h"
 #include "study/study.h"
 #include "study/summary.h"
@@ -356,7 +356,7 @@ void record_end(MemberRecord& r, const StudyJobEnd& e) {
   r.wall_seconds += e.wall_seconds;
   r.core_seconds += e.core_seconds;
   r.max_rss_mib = std::max(r.max_rss_mib, e.max_rss_mib);
-  r.commit = HYBRIDSIM_GIT_COMMIT;
+  r.commit = sim::build_identity().at("commit").get<std::string>();
   // 130/143: a run stopped by a signal, resumable from its checkpoint; > 128: killed by one.
   const bool interrupted = e.stopped || e.exit_code == 130 || e.exit_code == 143 || e.exit_code > 128;
   r.status = e.exit_code == 0 ? "done" : interrupted ? "interrupted" : "failed";
