@@ -20,6 +20,64 @@ struct ContactHistoryRecord {
   Vec3 xi;
 };
 
+// The block tables as records without padding: ContactBlock and BlockBody hold an Eigen
+// quaternion (16- or 32-byte aligned), so a raw copy would write whatever the padding bytes hold
+// and two equal states would give two different checkpoints.
+struct ContactBlockRecord {
+  std::uint64_t id;
+  double half_extents[3], position[3], orientation[4], velocity[3], angular_velocity[3], mass, friction;
+};
+struct BlockBodyRecord {
+  double position[3], orientation[4], velocity[3], angular_velocity[3], half_extents[3];
+};
+static_assert(sizeof(ContactBlockRecord) == 8 + 18 * 8 && sizeof(BlockBodyRecord) == 16 * 8, "records without padding");
+
+void put3(double* o, const Vec3& v) { o[0] = v.x(), o[1] = v.y(), o[2] = v.z(); }
+void putq(double* o, const Quat& q) { o[0] = q.w(), o[1] = q.x(), o[2] = q.y(), o[3] = q.z(); }
+Vec3 get3(const double* i) { return Vec3(i[0], i[1], i[2]); }
+Quat getq(const double* i) { return Quat(i[0], i[1], i[2], i[3]); }
+
+std::vector<ContactBlockRecord> contact_block_records(const std::vector<ContactBlock>& blocks) {
+  std::vector<ContactBlockRecord> out(blocks.size());
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    const ContactBlock& b = blocks[k];
+    ContactBlockRecord& r = out[k];
+    r.id = b.id;
+    put3(r.half_extents, b.half_extents), put3(r.position, b.position), putq(r.orientation, b.orientation);
+    put3(r.velocity, b.velocity), put3(r.angular_velocity, b.angular_velocity);
+    r.mass = b.mass, r.friction = b.friction;
+  }
+  return out;
+}
+std::vector<ContactBlock> contact_blocks(const std::vector<ContactBlockRecord>& records) {
+  std::vector<ContactBlock> out(records.size());
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    const ContactBlockRecord& r = records[k];
+    out[k] = {r.id, get3(r.half_extents), get3(r.position), getq(r.orientation), get3(r.velocity),
+              get3(r.angular_velocity), r.mass, r.friction};
+  }
+  return out;
+}
+std::vector<BlockBodyRecord> block_body_records(const std::vector<BlockBody>& blocks) {
+  std::vector<BlockBodyRecord> out(blocks.size());
+  for (std::size_t k = 0; k < blocks.size(); ++k) {
+    const BlockBody& b = blocks[k];
+    BlockBodyRecord& r = out[k];
+    put3(r.position, b.position), putq(r.orientation, b.orientation), put3(r.velocity, b.velocity);
+    put3(r.angular_velocity, b.angular_velocity), put3(r.half_extents, b.half_extents);
+  }
+  return out;
+}
+std::vector<BlockBody> block_bodies(const std::vector<BlockBodyRecord>& records) {
+  std::vector<BlockBody> out(records.size());
+  for (std::size_t k = 0; k < records.size(); ++k) {
+    const BlockBodyRecord& r = records[k];
+    out[k] = {get3(r.position), getq(r.orientation), get3(r.velocity), get3(r.angular_velocity),
+              get3(r.half_extents)};
+  }
+  return out;
+}
+
 /// A block-particle bond without padding (see BondRecord in bonded/engine_state.cpp).
 struct BlockBondRecord {
   GlobalId gid;
@@ -30,7 +88,7 @@ struct BlockBondRecord {
 }  // namespace
 
 void BlockContact::save_state(StateArchive& a, const std::string& p) const {
-  a.put(p + "blocks", blocks_);
+  a.put(p + "blocks", contact_block_records(blocks_));
   a.put(p + "loads", loads_);
   std::vector<ContactHistoryRecord> h;
   h.reserve(history_.size());
@@ -40,7 +98,7 @@ void BlockContact::save_state(StateArchive& a, const std::string& p) const {
 }
 
 void BlockContact::load_state(const StateArchive& a, const std::string& p) {
-  a.get_into(p + "blocks", blocks_);
+  blocks_ = contact_blocks(a.get<ContactBlockRecord>(p + "blocks"));
   a.get_into(p + "loads", loads_);
   if (loads_.size() != blocks_.size()) throw std::runtime_error("block contact checkpoint: loads and blocks differ");
   history_.clear();
@@ -52,7 +110,7 @@ void BlockContact::load_state(const StateArchive& a, const std::string& p) {
 }
 
 void BlockParticleBonds::save_state(StateArchive& a, const std::string& p) const {
-  a.put(p + "blocks", blocks_);
+  a.put(p + "blocks", block_body_records(blocks_));
   std::vector<BlockBondRecord> bonds;
   for (const BlockParticleBond& b : bonds_)
     bonds.push_back({b.gid, b.block, b.broken ? 1u : 0u, {b.anchor.x(), b.anchor.y(), b.anchor.z()},
@@ -67,7 +125,7 @@ void BlockParticleBonds::save_state(StateArchive& a, const std::string& p) const
 }
 
 void BlockParticleBonds::load_state(const StateArchive& a, const std::string& p) {
-  a.get_into(p + "blocks", blocks_);
+  blocks_ = block_bodies(a.get<BlockBodyRecord>(p + "blocks"));
   bonds_.clear();
   for (const BlockBondRecord& r : a.get<BlockBondRecord>(p + "bonds")) {
     BlockParticleBond b;
