@@ -15,10 +15,11 @@ namespace hs::app {
 void print_metrics_table(std::ostream& out, const std::vector<analysis::Metric>& metrics) {
   std::size_t w = 0;
   for (const auto& m : metrics) w = std::max(w, m.name.size());
-  out << "  metrics (docs/metrics.md; NaN: no data):\n";
+  out << "  metrics (docs/metrics.md; \"no data\": not defined for this run):\n";
   for (const auto& m : metrics)
     out << "    " << std::left << std::setw(static_cast<int>(w)) << m.name << "  " << std::right << std::setw(11)
-        << (std::isnan(m.value) ? std::string("NaN") : sci(m.value, 5)) << " " << m.unit << "\n";
+        << (std::isnan(m.value) ? std::string("no data") : sci(m.value, 5))
+        << (std::isnan(m.value) ? std::string() : " " + m.unit) << "\n";
 }
 
 int metrics_command(const MetricsCommandOptions& opt, std::ostream& out) {

@@ -21,7 +21,7 @@ struct MetricsCommandOptions {
 /// Returns the exit code; InputError (exit 2) for a missing or unreadable file or bad windows.
 int metrics_command(const MetricsCommandOptions& opt, std::ostream& out);
 
-/// The metrics as a table: name, value (NaN: no data), unit; one line each.
+/// The metrics as a table: name, value and unit ("no data" for a NaN); one line each.
 void print_metrics_table(std::ostream& out, const std::vector<analysis::Metric>& metrics);
 
 }  // namespace hs::app
