@@ -242,7 +242,9 @@ TEST(Parallel, CrushedPairKeepsItsSetThroughTheSpreadAndAcrossTheCut) {
                 world().size(), static_cast<long long>(migrated), worst);
   EXPECT_EQ(p.serial->crushed_pair_count(), 1u);  // still crushed
   EXPECT_EQ(crushed, 1);
-  if (world().size() == 2) EXPECT_GT(migrated, 0);  // the pair crossed x = 0
+  if (world().size() == 2) {
+    EXPECT_GT(migrated, 0);  // the pair crossed x = 0
+  }
   EXPECT_LT(worst, 1e-12);
 }
 
