@@ -41,6 +41,9 @@ struct BenchOptions {
 /// `bench hybrid` (bench_hybrid.cpp).
 nlohmann::json hybrid_benchmark(const par::Comm& comm, const BenchOptions& opt);
 
+/// The first "model name" of /proc/cpuinfo ("unknown" without one), for a benchmark's record.
+std::string cpu_model();
+
 int run_benchmark(const std::string& name, std::ostream& out, std::ostream& err,
                   const par::Comm& comm = par::serial(), const BenchOptions& opt = {});
 

@@ -50,7 +50,6 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
-#include <fstream>
 #include <exception>
 #include <functional>
 #include <limits>
@@ -489,15 +488,6 @@ void add_timing_json(nlohmann::json& j, const HybridTiming& t, const sim::Simula
   // Far sleep: sleeping blocks a change of their load woke, and the sub-step solves done again for them.
   j["sleepers_woken_by_solve"] = world.sleepers_woken_by_solve() - t.woken0;
   j["solves_repeated"] = world.solves_repeated() - t.repeated0;
-}
-
-/// The first "model name" of /proc/cpuinfo ("unknown" without one).
-std::string cpu_model() {
-  std::ifstream in("/proc/cpuinfo");
-  std::string line;
-  while (std::getline(in, line))
-    if (line.rfind("model name", 0) == 0) return line.substr(line.find(':') + 2);
-  return "unknown";
 }
 
 }  // namespace

@@ -48,4 +48,17 @@ std::string error_stack_text();
 /// Throws std::runtime_error "HDF5 <call> failed for '<object>' in '<file>' (<error stack>)".
 [[noreturn]] void fail(const char* call, const std::string& object, const std::string& file);
 
+/// The checks of the HDF5 calls on one file: a negative identifier or status throws (fail) with the
+/// call, the object and this file's path.
+struct FileCalls {
+  std::string path;
+  hid_t check_id(hid_t id, const char* call, const std::string& object) const {
+    if (id < 0) fail(call, object, path);
+    return id;
+  }
+  void check(herr_t e, const char* call, const std::string& object) const {
+    if (e < 0) fail(call, object, path);
+  }
+};
+
 }  // namespace hs::io::h5

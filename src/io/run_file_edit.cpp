@@ -13,17 +13,8 @@ namespace hs::io {
 
 using h5::Handle;
 
-struct RunFileEditor::Impl {
-  std::string path;
+struct RunFileEditor::Impl : h5::FileCalls {
   Handle file;
-
-  hid_t check_id(hid_t id, const char* call, const std::string& object) const {
-    if (id < 0) h5::fail(call, object, path);
-    return id;
-  }
-  void check(herr_t e, const char* call, const std::string& object) const {
-    if (e < 0) h5::fail(call, object, path);
-  }
   Handle open_object(const std::string& object) const {
     return Handle(check_id(H5Oopen(file.get(), object.c_str(), H5P_DEFAULT), "H5Oopen", object), H5Oclose);
   }

@@ -9,16 +9,8 @@ namespace hs::io {
 
 using h5::Handle;
 
-struct RunFileReader::Impl {
-  std::string path;
+struct RunFileReader::Impl : h5::FileCalls {
   Handle file;
-  hid_t check_id(hid_t id, const char* call, const std::string& object) const {
-    if (id < 0) h5::fail(call, object, path);
-    return id;
-  }
-  void check(herr_t e, const char* call, const std::string& object) const {
-    if (e < 0) h5::fail(call, object, path);
-  }
   bool attribute_exists(const std::string& object, const std::string& name) const {
     return H5Aexists_by_name(file.get(), object.c_str(), name.c_str(), H5P_DEFAULT) > 0;
   }
