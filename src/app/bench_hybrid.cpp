@@ -349,6 +349,7 @@ struct HybridTiming {
   double awake_sum = 0.0, moving_sum = 0.0;
   std::size_t awake_max = 0, awake_samples = 0;
   std::size_t woken0 = 0, repeated0 = 0;  ///< far sleep's counts when the timed steps began
+  rigid::RigidWorld::SolverStats solver0;  ///< the block solver's counts then
   double wall = 0.0;
   sim::RunCost cost0, cost1;  ///< this rank's cost breakdown when the timed steps began and ended
 };
@@ -375,6 +376,7 @@ HybridTiming time_hybrid(sim::Simulation& sim, const par::Comm& comm, std::uint6
   std::uint64_t rigid_before = hy.report().rigid_steps;
   t.woken0 = world.sleepers_woken_by_solve();
   t.repeated0 = world.solves_repeated();
+  t.solver0 = world.solver_stats();
   t.cost0 = sim.cost();
   const auto t1 = Clock::now();
   for (std::uint64_t k = 0; k < steps; ++k) {
@@ -488,6 +490,10 @@ void add_timing_json(nlohmann::json& j, const HybridTiming& t, const sim::Simula
   // Far sleep: sleeping blocks a change of their load woke, and the sub-step solves done again for them.
   j["sleepers_woken_by_solve"] = world.sleepers_woken_by_solve() - t.woken0;
   j["solves_repeated"] = world.solves_repeated() - t.repeated0;
+  // The block solver over the timed steps: velocity iterations per solve (blocks.solver_tolerance).
+  const rigid::RigidWorld::SolverStats ss = world.solver_stats();
+  const std::uint64_t solves = ss.solves - t.solver0.solves;
+  j["solver_iterations_per_solve"] = solves ? static_cast<double>(ss.iterations - t.solver0.iterations) / solves : 0.0;
 }
 
 }  // namespace

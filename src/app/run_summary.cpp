@@ -87,6 +87,10 @@ void print_blocks(std::ostream& out, const sim::RunStats& st, const sim::RunRepo
       << " particles (" << r.bonds_created << " bonds, " << r.sites_dropped << " overlapping sites dropped); peak "
       << r.peak_particles << " particles; " << r.rigid_steps << " rigid steps of " << sci(r.rigid_dt, 4)
       << " s; " << st.freeze_joints_broken << " freeze joints broken\n";
+  if (st.solver_solves > 0)
+    out << "  block solver: " << st.solver_solves << " solves, " << sci(double(st.solver_iterations) / st.solver_solves, 3)
+        << " iterations per solve (most " << st.solver_max_iterations << " of " << st.solver_iteration_cap
+        << "; blocks.solver_tolerance " << sci(st.solver_tolerance, 2) << " m/s; relaxation included)\n";
   if (st.far_sleep) {
     out << "  far sleep: " << st.awake_blocks << " blocks awake at the end; " << st.sleepers_woken_by_solve
         << " sleeping blocks woken by a change of their load (" << st.solves_repeated

@@ -92,6 +92,30 @@ class PooledSolver final : public btSequentialImpulseConstraintSolver {
     }
   }
 
+  /// Counted for RigidWorld::solver_stats; the arithmetic is Bullet's.
+  std::uint64_t solves = 0, iterations = 0;
+  int max_iterations = 0;
+
+  btScalar solveGroupCacheFriendlyIterations(btCollisionObject** bodies, int numBodies, btPersistentManifold** manifolds,
+                                             int numManifolds, btTypedConstraint** constraints, int numConstraints,
+                                             const btContactSolverInfo& info, btIDebugDraw* draw) override {
+    const std::uint64_t before = iterations;
+    const btScalar r = btSequentialImpulseConstraintSolver::solveGroupCacheFriendlyIterations(
+        bodies, numBodies, manifolds, numManifolds, constraints, numConstraints, info, draw);
+    ++solves;
+    max_iterations = std::max(max_iterations, static_cast<int>(iterations - before));
+    return r;
+  }
+
+  btScalar solveSingleIteration(int iteration, btCollisionObject** bodies, int numBodies, btPersistentManifold** manifolds,
+                                int numManifolds, btTypedConstraint** constraints, int numConstraints,
+                                const btContactSolverInfo& info, btIDebugDraw* draw) override {
+    ++iterations;
+    return btSequentialImpulseConstraintSolver::solveSingleIteration(iteration, bodies, numBodies, manifolds,
+                                                                     numManifolds, constraints, numConstraints, info,
+                                                                     draw);
+  }
+
   btScalar solveGroupCacheFriendlyFinish(btCollisionObject** bodies, int numBodies,
                                          const btContactSolverInfo& info) override {
     // The pools still hold this step's sizes here (the base class empties them).

@@ -51,6 +51,10 @@ RigidWorld::RigidWorld(const RigidWorldDef& def) : impl_(std::make_unique<Impl>(
   m.world->setGravity(to_bt(def.gravity));
   gCalculateCombinedFrictionCallback = &combined_friction;
   m.world->getSolverInfo().m_numIterations = std::max(1, def.solver_iterations);
+  if (!(def.solver_tolerance >= 0.0) || !std::isfinite(def.solver_tolerance))
+    throw InputError("rigid/solver_tolerance", "must be >= 0 (m/s; 0 = every solve takes solver_iterations)");
+  // Bullet's residual is the largest squared velocity correction of a row in an iteration.
+  m.world->getSolverInfo().m_leastSquaresResidualThreshold = def.solver_tolerance * def.solver_tolerance;
   if (def.contact_erp > 0.0) m.world->getSolverInfo().m_erp2 = def.contact_erp;
   if (def.joint_erp > 0.0) m.world->getSolverInfo().m_erp = def.joint_erp;
   if (!(def.split_impulse_depth >= 0.0)) throw InputError("rigid/split_impulse_depth", "must be >= 0 (m)");
@@ -301,6 +305,11 @@ void RigidWorld::set_solver_iterations(int n) {
   if (n < 1) throw InputError("rigid/solver_iterations", "must be >= 1");
   impl_->def.solver_iterations = n;
   impl_->world->getSolverInfo().m_numIterations = n;
+}
+
+RigidWorld::SolverStats RigidWorld::solver_stats() const {
+  const PooledSolver& s = *impl_->solver;
+  return {s.solves, s.iterations, s.max_iterations};
 }
 
 void RigidWorld::add_force(BlockId id, const Vec3& f, const Vec3& point) {

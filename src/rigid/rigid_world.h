@@ -49,7 +49,14 @@ struct JointId {
 struct RigidWorldDef {
   Vec3 gravity{0.0, 0.0, -9.81};    ///< m/s^2
   double dt = 1.0 / 240.0;          ///< fixed rigid sub-step, s
-  int solver_iterations = 20;       ///< sequential-impulse iterations per step
+  int solver_iterations = 20;       ///< sequential-impulse iterations per step, at most
+  /// Early exit of the sequential-impulse iterations, m/s: a solve stops after the first
+  /// iteration in which no row changed its relative velocity by more than this (Bullet's
+  /// m_leastSquaresResidualThreshold = tolerance^2: its residual is the largest squared velocity
+  /// correction of a row in the iteration), and after `solver_iterations` at the latest. The same
+  /// test ends the split-impulse (position) iterations. 0: every solve takes `solver_iterations`
+  /// (docs/rigid.md, "Solver iterations and their early exit").
+  double solver_tolerance = 0.0;
 
   // Water (ignored when water = false: no buoyancy, no drag).
   bool water = true;
@@ -263,6 +270,14 @@ class RigidWorld {
   void set_friction(BlockId id, double mu);
   /// Sequential-impulse iterations from the next sub-step on (>= 1).
   void set_solver_iterations(int n);
+  /// The solver's work since the world was made: solves (one per sub-step, and one per repeat
+  /// under far sleep), the velocity iterations they took in all, and the most one took.
+  struct SolverStats {
+    std::uint64_t solves = 0, iterations = 0;
+    int max_iterations = 0;
+    double mean_iterations() const { return solves ? static_cast<double>(iterations) / solves : 0.0; }
+  };
+  SolverStats solver_stats() const;
 
   /// External force (N) at a world point, applied during every following sub-step
   /// until clear_external_forces(); for loads held over a rigid step.

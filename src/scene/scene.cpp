@@ -46,7 +46,7 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/parallel", {"grid", "balance_interval", "cost"}},
       {"/blocks",
        {"ridge_file", "offset", "keep_x", "keep_y", "keep_sail", "loose_blocks", "list", "density", "friction", "linear_drag",
-        "drag_coefficient", "solver_iterations", "fixed_friction_directions", "friction_sees_torque", "rigid_dt", "conversion", "region",
+        "drag_coefficient", "solver_iterations", "solver_tolerance", "fixed_friction_directions", "friction_sees_torque", "rigid_dt", "conversion", "region",
         "safety_factor", "flexural_strength", "stress_time_constant", "relax", "far_sleep", "lattice"}},
       {"/blocks/relax", {"enabled", "max_time", "speed", "hold", "damping", "jointed_time", "lattice_time", "lattice_damping",
                          "hold_freeze_bonds"}},
@@ -542,6 +542,9 @@ void read_blocks(const JsonObject& root, Scene& s, const std::string& base_dir) 
                                 " instead (docs/engine.md, \"Water drag\")");
   b.solver_iterations = o.integer<int>("solver_iterations", b.solver_iterations, {1.0, 1000.0}, "",
                                        "Bullet sequential-impulse iterations, e.g. 20");
+  b.solver_tolerance = o.number("solver_tolerance", b.solver_tolerance, Range::non_negative(), "m/s",
+                                "the velocity correction below which a solve stops early, e.g. 1e-4; "
+                                "0 = every solve takes solver_iterations");
   b.fixed_friction_directions = o.boolean("fixed_friction_directions", b.fixed_friction_directions);
   b.friction_sees_torque = o.boolean("friction_sees_torque", b.friction_sees_torque);
   b.rigid_dt = o.number("rigid_dt", b.rigid_dt, Range::non_negative(), "s",

@@ -191,6 +191,10 @@ struct BlocksDef {
   double density = 0.0;              ///< kg/m^3; 0 = material.density
   double friction = -1.0;            ///< ice-ice; < 0 = material.friction
   int solver_iterations = 20;
+  /// m/s: a solve of the rigid world stops once no row changes its velocity by more than this in
+  /// an iteration (RigidWorldDef::solver_tolerance; docs/rigid.md, "Solver iterations and their
+  /// early exit"); 0 = every solve takes solver_iterations.
+  double solver_tolerance = 1e-4;
   /// Two friction directions per contact point, kept for its lifetime (RigidWorldDef); false:
   /// Bullet's one direction along the sliding velocity, under which resting blocks in a deep
   /// pile creep at cm/s (docs/ridge.md, "Fixed friction directions").

@@ -38,6 +38,7 @@ bridge::HybridDef hybrid_def(const scene::Scene& s, const CalibratedIce& ci) {
   w.quadratic_drag_cd = s.water.drag_coefficient;
   w.friction = d.block_friction;
   w.solver_iterations = b.solver_iterations;
+  w.solver_tolerance = b.solver_tolerance;
   w.fixed_friction_directions = b.fixed_friction_directions;
   w.friction_sees_torque = b.friction_sees_torque;
   // (ci: freeze strengths may be a fraction of the lattice bond's)

@@ -38,6 +38,12 @@ RunStats Simulation::run_stats() const {
       r.awake_blocks = w->awake_count();
       r.sleepers_woken_by_solve = w->sleepers_woken_by_solve();
       r.solves_repeated = w->solves_repeated();
+      const rigid::RigidWorld::SolverStats ss = w->solver_stats();
+      r.solver_solves = ss.solves;
+      r.solver_iterations = ss.iterations;
+      r.solver_max_iterations = ss.max_iterations;
+      r.solver_iteration_cap = w->def().solver_iterations;
+      r.solver_tolerance = w->def().solver_tolerance;
     }
   }
 

@@ -45,6 +45,11 @@ struct RunStats {
   std::size_t awake_blocks = 0;             ///< far sleep: awake at the last rigid step
   std::size_t sleepers_woken_by_solve = 0;  ///< far sleep: since this process started
   std::size_t solves_repeated = 0;          ///< far sleep: sub-step solves done again
+  /// The rigid world's solves and their velocity iterations since this process started
+  /// (relaxation included; rigid::RigidWorld::solver_stats), and the iteration cap.
+  std::uint64_t solver_solves = 0, solver_iterations = 0;
+  int solver_max_iterations = 0, solver_iteration_cap = 0;
+  double solver_tolerance = 0.0;            ///< m/s, blocks.solver_tolerance
 
   // ---- MPI (this rank's; the caller reduces) ----
   double force_seconds = 0.0, comm_seconds = 0.0;

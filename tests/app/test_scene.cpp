@@ -439,6 +439,16 @@ TEST(SceneBlocks, DefaultsAndErrors) {
   expect_error([&] { scene::parse_scene(k); }, "/blocks/solver_iterations", "expected a whole number, got 20.5");
   k["blocks"] = json::parse(R"({"list": [{}], "solver_iterations": 30.0})");
   EXPECT_EQ(scene::parse_scene(k).blocks.solver_iterations, 30);
+  // The solver's early exit (docs/rigid.md, "Solver iterations and their early exit"): 1e-4 m/s by
+  // default, 0 turns it off, a negative value is refused; the scene's value reaches the world.
+  EXPECT_EQ(scene::parse_scene(k).blocks.solver_tolerance, 1e-4);
+  k["blocks"] = json::parse(R"({"list": [{}], "solver_tolerance": 0})");
+  EXPECT_EQ(sim::block_setup(scene::parse_scene(k), nullptr, 0.0).def.world.solver_tolerance, 0.0);
+  k["blocks"] = json::parse(R"({"list": [{}], "solver_tolerance": 3e-4})");
+  EXPECT_EQ(sim::block_setup(scene::parse_scene(k), nullptr, 0.0).def.world.solver_tolerance, 3e-4);
+  k["blocks"] = json::parse(R"({"list": [{}], "solver_tolerance": -1e-4})");
+  expect_error([&] { scene::parse_scene(k); }, "/blocks/solver_tolerance", "out of range");
+  k["blocks"] = json::parse(R"({"list": [{}], "solver_iterations": 30.0})");
   // Fixed friction directions: on by default (the generator settles the keel so; with Bullet's one
   // sliding direction the keel creeps in the run), off on request.
   EXPECT_TRUE(scene::parse_scene(k).blocks.fixed_friction_directions);
