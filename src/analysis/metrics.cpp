@@ -118,9 +118,12 @@ PileShape pile_shape(const PileShapeGrid& g, const PileShapeCells& c) {
   // Least squares in long double over the pile's cells: sums of d, c, d^2, d c.
   long double n = 0, sd = 0, sc = 0, sdd = 0, sdc = 0, vol = 0, env = 0;
   double d_lo = kNaN, d_hi = kNaN;
-  for (std::size_t k = 0; k < c.crest.size() && k < c.volume.size(); ++k) {
+  const std::size_t nd = std::min(c.crest.size(), c.volume.size()) / std::max<std::size_t>(nv, 1);
+  std::vector<bool> open(nv, true);  // per strip across: no cell at most min_height met yet
+  for (std::size_t k = 0; k < nd * nv; ++k) {
     const double h = c.crest[k];
-    if (!(h > g.min_height)) continue;
+    if (!(h > g.min_height)) open[k % nv] = false;
+    if (!open[k % nv]) continue;
     const double d = (static_cast<double>(k / nv) + 0.5) * g.cell;
     n += 1;
     sd += d;

@@ -23,7 +23,8 @@
 //   v in [-R, R], 0 < d <= ahead;
 // per cell the crest c = max(z + r) - water_level over its particles (0 when none is above the
 // water) and the particle volume V = sum 4/3 pi r^3 over its particles whose centre lies above
-// the water level. The pile's cells: c > min_height.
+// the water level. The pile's cells: in each strip across (one v), the cells from the face outward
+// up to the first with c <= min_height (the pile's toe); ice raised farther ahead is not the pile.
 //   (P1) rubble slope angle  theta = atan(-b) (deg), b the least-squares slope of c against the
 //        cell's centre d over the pile's cells; NaN with fewer than two distinct d among them.
 //   (P2) pile porosity  e = 1 - sum V / sum (cell^2 c) over the pile's cells: the envelope is the

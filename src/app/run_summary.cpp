@@ -120,16 +120,16 @@ void print_iso(std::ostream& out, const sim::RunReport& an, const sim::RunFigure
     std::string origin;
     for (const auto& rec : an.iso_records)
       if (rec.key == key) origin = rec.origin;
-    return std::string(symbol) + " = " + sci(value, prec) + unit + " (" + origin + ")";
+    return std::string(symbol) + " = " + sci(value, prec) + unit + " [" + origin + "]";
   };
   const auto& in = an.iso_in;
   out << "  ISO 19906 inputs: " << input("h", "thickness", in.thickness, " m", 4) << ", "
       << input("sigma_f", "flexural_strength", in.flexural_strength, " Pa", 4) << "\n    "
       << input("h_r", "rubble_height", in.rubble_height, " m", 4);
   if (an.has_pile_mean)
-    out << " [the run's maximum " << sci(an.max_pile_mean, 4) << " m at t = " << sci(an.max_pile_mean_time, 4)
-        << " s]";
-  out << ", " << input("theta", "rubble_slope_deg", in.rubble_slope_deg, " deg", 3) << ", "
+    out << ", the run's maximum " << sci(an.max_pile_mean, 4) << " m at t = " << sci(an.max_pile_mean_time, 4)
+        << " s";
+  out << "\n    " << input("theta", "rubble_slope_deg", in.rubble_slope_deg, " deg", 3) << ", "
       << input("e", "rubble_porosity", in.rubble_porosity, "", 3);
   if (in.keel_depth > 0)
     out << "\n    " << input("h_k", "keel_depth", in.keel_depth, " m", 4) << " below the consolidated layer, "

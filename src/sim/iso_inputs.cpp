@@ -125,9 +125,11 @@ std::string fmt_g(double v, int digits) {
   return b;
 }
 
-/// "measured at t = 28.1 to 29.1 s (load peak)" and the window in words for a note.
+/// "measured at t = 28.1 to 29.1 s (load peak)" ("(the whole run)" for a run shorter than the
+/// moving mean) and the window in words for a note.
 std::string peak_origin(const PileAtLoadPeak& p) {
-  return "measured at t = " + fmt_g(p.window.t0, 4) + " to " + fmt_g(p.window.t1, 4) + " s (load peak)";
+  return "measured at t = " + fmt_g(p.window.t0, 4) + " to " + fmt_g(p.window.t1, 4) + " s (" +
+         (p.window.whole_run ? "the whole run" : "load peak") + ")";
 }
 std::string peak_note(const PileAtLoadPeak& p, const char* series) {
   return std::string("mean of /pile_per_clock/") + series + " over t = " + json_fmt(p.window.t0) + " to " +
@@ -300,7 +302,8 @@ void set_keel_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& 
         "pier diameter weighted by the plug-failure pressure over the keel, z = " + json_fmt(z_top) + " to " +
             json_fmt(z_top - in.values.keel_depth) + " m in the pier's frame (cone base " +
             json_fmt(2.0 * mesh::pier_cone_radius(pier, pier.cone_bottom_z)) + " m at z = " +
-            json_fmt(pier.cone_bottom_z) + " m, shaft " + json_fmt(pier.shaft_diameter) + " m)");
+            json_fmt(pier.cone_bottom_z) + " m, shaft " + json_fmt(pier.shaft_diameter) + " m)",
+        "the pier's profile over the keel's depth");
   } else {
     in.set("keel_width", &analysis::IsoInputs::keel_width, in.values.waterline_diameter, scene_or_default(s, "/structure/pier"),
         "no keel: the waterline diameter");

@@ -182,6 +182,15 @@ TEST(Metrics, NoPileIsNaN) {
   EXPECT_EQ(s.pile_cells, 0u);
   EXPECT_TRUE(std::isnan(s.slope_deg));
   EXPECT_TRUE(std::isnan(s.porosity));
+  // Ice raised above min_height beyond open water ahead of the face (a sheet lifted by a keel) is
+  // not a pile: the pile starts at the face.
+  Wedge raised = w;
+  for (double d = 3.0; d < 6.0; d += g.cell)
+    for (double v = -2.0; v < 2.0; v += g.cell) {
+      raised.x.push_back(g.axis_point + hs::Vec3(d + std::sqrt(g.radius * g.radius - v * v), v, g.water_level + 0.4));
+      raised.r.push_back(g.cell / 2);
+    }
+  EXPECT_EQ(pile_shape(g, pile_shape_cells(g, raised.x.data(), raised.r.data(), raised.x.size())).pile_cells, 0u);
   const PileShape none = pile_shape(g, pile_shape_cells(g, nullptr, nullptr, 0));
   EXPECT_TRUE(std::isnan(none.slope_deg) && std::isnan(none.porosity));
 }
