@@ -41,12 +41,14 @@ RUN_KEYS = dict(thickness="h", waterline_diameter="w", flexural_strength="sigma_
                 poisson_ratio="nu", cone_angle_deg="a_deg", friction_ice_structure="mu", friction_ice_ice="mu_i",
                 ice_density="rho_i", water_density="rho_w", gravity="g", rubble_height="h_r",
                 rubble_porosity="e", rubble_cohesion="c", rubble_slope_deg="th_deg",
-                rubble_friction_angle_deg="phi_deg", keel_depth="h_k", keel_width="w_k")
+                rubble_friction_angle_deg="phi_deg", keel_depth="h_k", keel_width="w_k",
+                keel_porosity="e_k")
 SOURCES = {"scene", "measured", "default", "ridge_file", "calibrated"}
 RESULT_KEYS = KEYS + ["F_total"]
 
 
-def iso(h, w, sigma_f, E, nu, a_deg, mu, mu_i, rho_i, rho_w, g, h_r, e, th_deg, phi_deg, c, h_k, w_k=0.0):
+def iso(h, w, sigma_f, E, nu, a_deg, mu, mu_i, rho_i, rho_w, g, h_r, e, th_deg, phi_deg, c, h_k, w_k=0.0, e_k=None):
+    e_k = e if e_k is None else e_k  # the keel's porosity: ISO's one porosity unless given
     a = math.radians(a_deg)
     th = math.radians(th_deg)
     phi = math.radians(phi_deg)
@@ -69,7 +71,7 @@ def iso(h, w, sigma_f, E, nu, a_deg, mu, mu_i, rho_i, rho_w, g, h_r, e, th_deg, 
     r["F_H"] = ((r["H_B"] + r["H_P"] + r["H_R"] + r["H_L"] + r["H_T"])
                 / (1.0 - r["H_B"] / (sigma_f * r["l"] * h)))
     mu_phi = math.tan(math.radians(45.0) + phi / 2.0)
-    gamma_e = (1.0 - e) * (rho_w - rho_i) * g
+    gamma_e = (1.0 - e_k) * (rho_w - rho_i) * g
     wk = w_k if w_k > 0.0 else w  # the width the keel meets; 0 = the waterline diameter
     r["F_K"] = (mu_phi * h_k * wk * (h_k * mu_phi * gamma_e / 2.0 + 2.0 * c) * (1.0 + h_k / (6.0 * wk))
                 if h_k > 0.0 else 0.0)

@@ -5,7 +5,8 @@ Usage: tools/plot_run.py RUN.h5 [-o OUTDIR] [--show-parts]
 
 Writes, next to RUN.h5 (or in OUTDIR):
   <stem>_force.png        horizontal (F_x) and vertical (F_z) force on the structure, MN;
-                          ISO 19906 estimates (F_H, F_total, F_K, H_B) as horizontal lines if stored;
+                          ISO 19906 estimates (F_H, F_total, F_K, H_B, and F_total with the keel
+                          frozen at the cone base, labelled with its depth) as horizontal lines if stored;
                           with --show-parts also the force on each part (/series/parts/<part>/force)
   <stem>_pile_height.png  rubble pile height, only if /series/pile_height exists
   <stem>_energy.png       every /series/energy/<name>
@@ -50,6 +51,7 @@ ISO_LINES = [
     ("F_total", "-.", "tab:purple", "ISO 19906 $F_H + F_K$"),
     ("F_K", ":", "tab:brown", "ISO 19906 $F_K$ (keel)"),
     ("H_B", ":", "tab:gray", "ISO 19906 $H_B$ (breaking)"),
+    ("keel_frozen_F_total", (0, (5, 1)), "tab:olive", "ISO 19906 $F_H + F_K$ (keel frozen at %s m)"),
 ]
 
 
@@ -170,6 +172,8 @@ class Run:
                         value = _scalar(attrs[key])
                         if value is not None:
                             found[name] = value
+        if "analysis/iso" in f and "keel_frozen_depth" in f["analysis/iso"].attrs:
+            found["keel_frozen_depth"] = _scalar(f["analysis/iso"].attrs["keel_frozen_depth"])
         return found
 
     @property
@@ -241,6 +245,8 @@ def plot_force(run, out, show_parts):
             if name in run.iso and run.iso[name] != 0.0:
                 if name == "F_total" and np.isclose(run.iso[name], run.iso.get("F_H", np.nan)):
                     continue  # no keel: F_total = F_H, one line is enough
+                if "%s" in label:  # the frozen keel's line names its depth
+                    label = label % ("%.3g" % run.iso.get("keel_frozen_depth", float("nan")))
                 value = run.iso[name] / factor
                 ax_h.axhline(value, ls=style, color=colour, lw=1.3,
                              label="%s = %.3g %s" % (label, value, shown))

@@ -25,7 +25,7 @@ struct Field {
 };
 
 /// JSON key <-> field, in declaration order; the one list that keeps names in step.
-constexpr std::array<Field, 18> kFields{{
+constexpr std::array<Field, 19> kFields{{
     {"thickness", &IsoInputs::thickness, "m"},
     {"waterline_diameter", &IsoInputs::waterline_diameter, "m"},
     {"flexural_strength", &IsoInputs::flexural_strength, "Pa"},
@@ -44,6 +44,7 @@ constexpr std::array<Field, 18> kFields{{
     {"rubble_friction_angle_deg", &IsoInputs::rubble_friction_angle_deg, "deg"},
     {"keel_depth", &IsoInputs::keel_depth, "m"},
     {"keel_width", &IsoInputs::keel_width, "m"},
+    {"keel_porosity", &IsoInputs::keel_porosity, ""},
 }};
 
 constexpr double kDeg = std::numbers::pi / 180.0;
@@ -127,6 +128,8 @@ void validate_iso_inputs(const IsoInputs& in, const std::string& base_path) {
   c.non_negative("rubble_height", in.rubble_height, "(m)");
   if (!(in.rubble_porosity >= 0.0 && in.rubble_porosity < 1.0))
     c.fail("rubble_porosity", in.rubble_porosity, "must be in [0, 1) (typically 0.1-0.4)");
+  if (!(in.keel_porosity >= 0.0 && in.keel_porosity < 1.0))
+    c.fail("keel_porosity", in.keel_porosity, "must be in [0, 1) (typically 0.2-0.45)");
   c.non_negative("rubble_cohesion", in.rubble_cohesion, "(Pa)");
   if (!(in.rubble_slope_deg > 0.0 && in.rubble_slope_deg < in.cone_angle_deg))
     c.fail("rubble_slope_deg", in.rubble_slope_deg,
@@ -202,7 +205,7 @@ IsoResult compute_iso(const IsoInputs& in) {
   r.F_H = (r.H_B + r.H_P + r.H_R + r.H_L + r.H_T) / (1.0 - r.H_B / (sigma_f * r.l * h));
 
   const double mu_phi = tan(pi / 4.0 + phi / 2.0);
-  const double gamma_e = (1.0 - e) * (rho_w - rho_i) * g;  // buoyant weight density of the keel
+  const double gamma_e = (1.0 - in.keel_porosity) * (rho_w - rho_i) * g;  // buoyant weight density of the keel
   r.F_K = h_k > 0.0
               ? mu_phi * h_k * w_k * (h_k * mu_phi * gamma_e / 2.0 + 2.0 * c) * (1.0 + h_k / (6.0 * w_k))
               : 0.0;
@@ -216,6 +219,7 @@ IsoInputs iso_inputs_from_json(const nlohmann::json& j, const std::string& base_
                                                      "{\"thickness\": 0.6}; see docs/iso19906.md");
   IsoInputs in;
   for (const auto& f : kFields) in.*f.member = o.number(f.key, in.*f.member, JsonRange::any(), f.unit, hint);
+  if (!o.has("keel_porosity")) in.keel_porosity = in.rubble_porosity;  // one porosity unless both are given
   validate_iso_inputs(in, base_path);
   return in;
 }

@@ -22,7 +22,9 @@
 // Keel: Dolgopolov et al. (1975) plug failure, as used by ISO 19906, with w_k the width of
 // the structure the keel meets (keel_width; 0 = the waterline diameter w):
 //   F_K = mu_phi h_k w_k (h_k mu_phi gamma_e / 2 + 2 c)(1 + h_k / (6 w_k)),
-//   mu_phi = tan(45 deg + phi/2),  gamma_e = (1 - e)(rho_w - rho_i) g;  F_K = 0 when h_k = 0.
+//   mu_phi = tan(45 deg + phi/2),  gamma_e = (1 - e_k)(rho_w - rho_i) g;  F_K = 0 when h_k = 0,
+// e_k the keel's porosity (keel_porosity; ISO has one porosity, e, for the pile and the keel: a
+// JSON input without keel_porosity takes rubble_porosity).
 // Ridge load (ISO): consolidated layer as level ice of the layer's thickness h, plus the keel:
 //   F_total = F_H + F_K.
 // These are upper bounds: on the Confederation Bridge piers ISO estimates exceed measured
@@ -58,12 +60,13 @@ struct IsoInputs {
   double water_density = 1025.0;           ///< rho_w, kg/m^3
   double gravity = 9.81;                   ///< g, m/s^2
   double rubble_height = 5.0;              ///< h_r, height of the rubble pile on the cone, m
-  double rubble_porosity = 0.3;            ///< e, rubble (and keel) porosity, - in [0, 1)
+  double rubble_porosity = 0.3;            ///< e, rubble pile porosity, - in [0, 1)
   double rubble_cohesion = 3.0e3;          ///< c, rubble (and keel) cohesion, Pa
   double rubble_slope_deg = 40.0;          ///< th, rubble pile slope from horizontal, deg (< a)
   double rubble_friction_angle_deg = 30.0; ///< phi, rubble (and keel) internal friction angle, deg
   double keel_depth = 0.0;                 ///< h_k, keel depth below the consolidated layer, m
   double keel_width = 0.0;                 ///< w_k, structure width the keel meets, m; 0 = waterline_diameter
+  double keel_porosity = 0.3;              ///< e_k, keel porosity, - in [0, 1) (JSON: rubble_porosity when not given)
 };
 
 /// The load components (N) and the derived quantities of the estimate.

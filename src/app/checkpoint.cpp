@@ -146,7 +146,8 @@ namespace {
 bool added_later(const std::string& path) {
   static const char* const kAddedLater[] = {"/series/max_overlap_ratio",   "/load_per_step/time",
                                             "/load_per_step/force",        "/pile_per_clock/time",
-                                            "/pile_per_clock/height_top", "/pile_per_clock/height_mean"};
+                                            "/pile_per_clock/height_top", "/pile_per_clock/height_mean",
+                                            "/pile_per_clock/slope_deg",   "/pile_per_clock/porosity"};
   for (const char* p : kAddedLater)
     if (path == p) return true;
   return false;

@@ -611,7 +611,10 @@ int run_scene(const RunOptions& opt, std::ostream& out, std::FILE* progress) {
   // 4. report: pieces, ISO beside the run, the hybrid outcome, the cost -> /analysis and the summary
   const auto t_analysis = Clock::now();
   const sim::RunFigures fig = rec.figures();
-  sim::RunReport an = sim::analyse_run(sim, s, fig, comm);
+  comm.barrier();  // every rank's close has completed before rank 0 reopens the file
+  std::optional<sim::PileAtLoadPeak> at_peak;  // ISO's pile at the load peak, from the file (rank 0)
+  if (comm.rank() == 0 && sim.has_structure() && s.structure.type == "pier") at_peak = sim::pile_at_load_peak(in.out_path);
+  sim::RunReport an = sim::analyse_run(sim, s, fig, comm, at_peak);
   cost.add(sim::Phase::Analysis, seconds_since(t_analysis));
   an.cost = sim::reduce_cost(sim.cost(), comm);  // collective
   comm.barrier();  // every rank's close has completed before rank 0 reopens the file

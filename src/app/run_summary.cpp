@@ -116,6 +116,45 @@ void print_blocks(std::ostream& out, const sim::RunStats& st, const sim::RunRepo
         << " m/s at the last step)\n";
 }
 
+/// The ISO 19906 estimate: its inputs with their sources, the components, and each DEM/ISO
+/// ratio named by its yardstick (sim::yardstick).
+void print_iso(std::ostream& out, const sim::RunReport& an, const sim::RunFigures& f) {
+  const auto& r = an.iso;
+  const auto input = [&](const char* symbol, const char* key, double value, const char* unit, int prec) {
+    std::string origin;
+    for (const auto& rec : an.iso_records)
+      if (rec.key == key) origin = rec.origin;
+    return std::string(symbol) + " = " + sci(value, prec) + unit + " [" + origin + "]";
+  };
+  const auto& in = an.iso_in;
+  out << "  ISO 19906 inputs: " << input("h", "thickness", in.thickness, " m", 4) << ", "
+      << input("sigma_f", "flexural_strength", in.flexural_strength, " Pa", 4) << "\n    "
+      << input("h_r", "rubble_height", in.rubble_height, " m", 4);
+  if (an.has_pile_mean)
+    out << ", the run's maximum " << sci(an.max_pile_mean, 4) << " m at t = " << sci(an.max_pile_mean_time, 4)
+        << " s";
+  out << "\n    " << input("theta", "rubble_slope_deg", in.rubble_slope_deg, " deg", 3) << ", "
+      << input("e", "rubble_porosity", in.rubble_porosity, "", 3);
+  if (in.keel_depth > 0)
+    out << "\n    " << input("h_k", "keel_depth", in.keel_depth, " m", 4) << " below the consolidated layer, "
+        << input("e_k", "keel_porosity", in.keel_porosity, "", 3) << ", "
+        << input("w_k", "keel_width", in.keel_width, " m", 4);
+  out << "\n  ISO 19906: H_B " << sci(r.H_B, 4) << ", H_P " << sci(r.H_P, 4) << ", H_R " << sci(r.H_R, 4) << ", H_L "
+      << sci(r.H_L, 4) << ", H_T " << sci(r.H_T, 4) << ", F_H " << sci(r.F_H, 4) << ", F_K " << sci(r.F_K, 4)
+      << " N\n";
+  out << "  " << sim::yardstick(an) << " = " << sci(analysis::dem_over_iso(f.peak_h, r), 3) << ": DEM peak horizontal force "
+      << sci(f.peak_h, 4) << " N vs ISO " << (r.F_K > 0 ? "F_H + F_K " : "F_H ") << sci(r.F_total, 4) << " N\n";
+  if (r.F_K > 0) out << "  DEM/ISO (F_H only) = " << sci(r.F_H > 0 ? f.peak_h / r.F_H : 0.0, 3) << "\n";
+  if (an.has_iso_frozen)
+    out << "  " << sim::frozen_yardstick(an) << " = " << sci(analysis::dem_over_iso(f.peak_h, an.iso_frozen), 3)
+        << ": the keel counted down to the cone base, " << sci(an.iso_frozen_depth, 3)
+        << " m below the waterline (h_k = " << sci(an.iso_frozen_in.keel_depth, 3)
+        << " m below the layer): F_H + F_K " << sci(an.iso_frozen.F_total, 4) << " N\n";
+  if (an.iso_F_H_top_particle > 0)
+    out << "  with the highest particle as h_r (" << sci(f.max_pile, 4) << " m): F_H " << sci(an.iso_F_H_top_particle, 4)
+        << " N, DEM/ISO (F_H only) = " << sci(f.peak_h / an.iso_F_H_top_particle, 3) << "\n";
+}
+
 void print_pieces_and_iso(std::ostream& out, const sim::RunReport& an, const sim::RunFigures& f) {
   std::size_t multi = 0;
   for (auto n : an.pieces.size) multi += n >= 2;
@@ -130,39 +169,10 @@ void print_pieces_and_iso(std::ostream& out, const sim::RunReport& an, const sim
       << (an.pieces.size.empty() ? 0 : an.pieces.size[0]) << " particles; median extent of broken-off pieces "
       << sci(median, 4) << " m (" << ext.size() << " pieces); "
       << (an.L_c_note.empty() ? "L_c = " + sci(an.L_c, 4) + " m" : an.L_c_note) << "\n";
-  if (an.has_iso) {
-    const auto& r = an.iso;
-    const auto src = [&](const char* key) {
-      for (const auto& rec : an.iso_records)
-        if (rec.key == key) return std::string(" (") + sim::to_string(rec.source) + ")";
-      return std::string();
-    };
-    out << "  ISO 19906 (h = " << sci(an.iso_in.thickness, 4) << " m" << src("thickness") << ", h_r = "
-        << sci(an.iso_in.rubble_height, 4) << " m" << src("rubble_height") << ", sigma_f = "
-        << sci(an.iso_in.flexural_strength, 4) << " Pa" << src("flexural_strength") << ", e = "
-        << sci(an.iso_in.rubble_porosity, 3) << src("rubble_porosity") << ", h_k = " << sci(an.iso_in.keel_depth, 4)
-        << " m" << src("keel_depth") << "): H_B " << sci(r.H_B, 4) << ", H_P " << sci(r.H_P, 4) << ", H_R "
-        << sci(r.H_R, 4) << ", H_L " << sci(r.H_L, 4) << ", H_T " << sci(r.H_T, 4) << ", F_K " << sci(r.F_K, 4)
-        << " N\n";
-    if (r.F_K > 0) {  // a ridge: judged against the ridge load, the level-ice term beside it
-      out << "  DEM peak horizontal force " << sci(f.peak_h, 4) << " N vs ISO F_H + F_K " << sci(r.F_total, 4)
-          << " N: DEM/ISO = " << sci(analysis::dem_over_iso(f.peak_h, r), 3) << " (vs F_H alone "
-          << sci(r.F_H > 0 ? f.peak_h / r.F_H : 0.0, 3) << ")";
-      if (an.has_iso_frozen)
-        out << "\n  ISO with the keel frozen at the cone base (" << sci(an.iso_frozen_depth, 3) << " m): F_H + F_K "
-            << sci(an.iso_frozen.F_total, 4) << " N, DEM/ISO = " << sci(analysis::dem_over_iso(f.peak_h, an.iso_frozen), 3);
-    } else {
-      out << "  DEM peak horizontal force " << sci(f.peak_h, 4) << " N vs ISO F_H " << sci(r.F_H, 4)
-          << " N: DEM/ISO = " << sci(analysis::dem_over_iso(f.peak_h, r), 3);
-    }
-    if (an.iso_F_H_top_particle > 0)
-      out << " (with the highest particle as h_r, " << sci(f.max_pile, 4) << " m: F_H "
-          << sci(an.iso_F_H_top_particle, 4) << " N, DEM/ISO = " << sci(f.peak_h / an.iso_F_H_top_particle, 3)
-          << ")";
-    out << "\n";
-  } else if (!an.iso_note.empty()) {
+  if (an.has_iso)
+    print_iso(out, an, f);
+  else if (!an.iso_note.empty())
     out << "  " << an.iso_note << "\n";
-  }
 }
 
 /// MPI figures (collective): the slowest rank sets the pace; comm time is exchanges + reductions.

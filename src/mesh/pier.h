@@ -2,7 +2,9 @@
 //
 // Profile (axis = z through the origin, water line z = 0), top to bottom:
 //   neck   vertical cylinder, radius r(cone_top_z), from cone_top_z + neck_height
-//          down to cone_top_z; closed by a flat top cap (part "neck");
+//          down to cone_top_z: the pier's column above the ice shield, up to the deck
+//          (default top z = +20 m, above any rubble pile); closed by a flat top cap
+//          there (part "neck");
 //   cone   r(z) = waterline_diameter/2 - z / tan(cone_angle), widening downwards from
 //          cone_top_z to cone_bottom_z (an upward-breaking ice shield; the slope is
 //          cone_angle from the horizontal), then a flat horizontal annulus at cone_bottom_z
@@ -24,11 +26,15 @@ struct PierParams {
   double cone_angle_deg = 52.0;      ///< cone slope from the horizontal, deg, in (0, 90)
   double cone_top_z = 2.0;           ///< where the cone meets the neck, m
   double cone_bottom_z = -4.0;       ///< cone base (widest section), m
-  double neck_height = 4.0;          ///< vertical column above the cone top, m
+  double neck_height = 18.0;         ///< vertical column above the cone top, m (to the deck, z = +20 m)
   double shaft_diameter = 10.0;      ///< column below the cone base, m
   double shaft_bottom_z = -20.0;     ///< m
   int segments = 64;                 ///< polygon corners per circle, >= 3
 };
+
+/// Default deck level, m above the water line (pier frame): the top of the neck when a scene
+/// gives neither structure.pier.deck_z nor neck_height (scene/scene.cpp).
+inline constexpr double kPierDefaultDeckZ = 20.0;
 
 /// Part ids of make_pier (indices into TriMesh::part_names).
 inline constexpr std::uint16_t kPierNeck = 0;

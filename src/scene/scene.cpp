@@ -37,8 +37,8 @@ const std::map<std::string, std::vector<std::string>>& schema_keys() {
       {"/walls/*", {"name", "point", "normal", "velocity", "friction"}},
       {"/structure", {"name", "type", "pier", "mesh", "position", "velocity", "friction"}},
       {"/structure/pier",
-       {"waterline_diameter", "cone_angle_deg", "cone_top_z", "cone_bottom_z", "neck_height", "shaft_diameter",
-        "shaft_bottom_z", "segments"}},
+       {"waterline_diameter", "cone_angle_deg", "cone_top_z", "cone_bottom_z", "neck_height", "deck_z",
+        "shaft_diameter", "shaft_bottom_z", "segments"}},
       {"/analysis",
        {"flexural_strength", "rubble_porosity", "rubble_slope_deg", "rubble_friction_angle_deg", "rubble_cohesion",
         "friction_ice_ice", "keel_depth", "rubble_height"}},
@@ -339,7 +339,18 @@ void read_pier(const JsonObject& o, mesh::PierParams& pp) {
   pp.cone_angle_deg = p.number("cone_angle_deg", pp.cone_angle_deg, Range::any(), "deg", hint);
   pp.cone_top_z = p.number("cone_top_z", pp.cone_top_z, Range::any(), "m", hint);
   pp.cone_bottom_z = p.number("cone_bottom_z", pp.cone_bottom_z, Range::any(), "m", hint);
-  pp.neck_height = p.number("neck_height", pp.neck_height, Range::any(), "m", hint);
+  // The column above the cone ends at the deck (deck_z, default kPierDefaultDeckZ) or, when the
+  // scene gives neck_height, that far above the cone top; not both.
+  if (p.has("neck_height") && p.has("deck_z"))
+    throw InputError("/structure/pier/deck_z", "give either deck_z (the top of the column above the cone, m) or "
+                                               "neck_height (its height above cone_top_z), not both");
+  const double deck_z = p.number("deck_z", mesh::kPierDefaultDeckZ, Range::any(), "m", hint);
+  pp.neck_height = p.number("neck_height", deck_z - pp.cone_top_z, Range::any(), "m", hint);
+  if (!p.has("neck_height") && !(pp.neck_height > 0.0))
+    throw InputError("/structure/pier/deck_z", "deck_z = " + json_fmt(deck_z) + " m must be above cone_top_z = " +
+                                                   json_fmt(pp.cone_top_z) + " m: the column rises from the cone "
+                                                   "top to the deck; raise deck_z (default " +
+                                                   json_fmt(mesh::kPierDefaultDeckZ) + " m)");
   pp.shaft_diameter = p.number("shaft_diameter", pp.shaft_diameter, Range::any(), "m", hint);
   pp.shaft_bottom_z = p.number("shaft_bottom_z", pp.shaft_bottom_z, Range::any(), "m", hint);
   pp.segments = p.integer<int>("segments", pp.segments, {3.0, 100000.0, false, false}, "",

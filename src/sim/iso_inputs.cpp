@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <numbers>
 #include <set>
 #include <stdexcept>
@@ -107,14 +108,35 @@ struct InputSetter {
   analysis::IsoInputs values;
   struct Pending {
     IsoSource source;
-    std::string note;
+    std::string note, origin;
   };
   std::vector<std::pair<std::string, Pending>> sources;
-  void set(const char* key, double analysis::IsoInputs::*field, double value, IsoSource source, std::string note = "") {
+  void set(const char* key, double analysis::IsoInputs::*field, double value, IsoSource source, std::string note = "",
+           std::string origin = "") {
     values.*field = value;
-    sources.push_back({key, {source, std::move(note)}});
+    if (origin.empty()) origin = to_string(source);
+    sources.push_back({key, {source, std::move(note), std::move(origin)}});
   }
 };
+
+std::string fmt_g(double v, int digits) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.*g", digits, v);
+  return b;
+}
+
+/// "measured at t = 28.1 to 29.1 s (load peak)" ("(the whole run)" for a run shorter than the
+/// moving mean) and the window in words for a note.
+std::string peak_origin(const PileAtLoadPeak& p) {
+  return "measured at t = " + fmt_g(p.window.t0, 4) + " to " + fmt_g(p.window.t1, 4) + " s (" +
+         (p.window.whole_run ? "the whole run" : "load peak") + ")";
+}
+std::string peak_note(const PileAtLoadPeak& p, const char* series) {
+  return std::string("mean of /pile_per_clock/") + series + " over t = " + json_fmt(p.window.t0) + " to " +
+         json_fmt(p.window.t1) + " s, " +
+         (p.window.whole_run ? "the whole run (shorter than the 1 s moving mean of the horizontal load)"
+                             : "the window of the peak 1 s moving mean of the horizontal load");
+}
 
 /// Thickness, waterline diameter, flexural strength, stiffness: the ice ISO breaks.
 void set_ice_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& m) {
@@ -184,33 +206,64 @@ void set_material_inputs(InputSetter& in, const scene::Scene& s) {
   in.set("gravity", &analysis::IsoInputs::gravity, s.gravity.norm(), scene_or_default(s, "/gravity"), "|/gravity|");
 }
 
+/// The pile's height, slope and porosity, and the keel's porosity.
+void set_pile_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& m) {
+  using I = analysis::IsoInputs;
+  const auto& an = s.analysis;
+  const std::optional<PileAtLoadPeak>& p = m.at_peak;
+  const std::string run_max =
+      m.rubble_height ? "; the run's maximum " + json_fmt(*m.rubble_height) + " m" : std::string();
+  if (given(s, "/analysis/rubble_height"))
+    in.set("rubble_height", &I::rubble_height, an.rubble_height, IsoSource::Scene, "/analysis/rubble_height");
+  else if (p && std::isfinite(p->height_mean))
+    in.set("rubble_height", &I::rubble_height, p->height_mean, IsoSource::Measured,
+        "ISO-consistent pile height (crest averaged over the waterline width): " + peak_note(*p, "height_mean") +
+            run_max, peak_origin(*p));
+  else if (m.rubble_height)
+    in.set("rubble_height", &I::rubble_height, *m.rubble_height, IsoSource::Measured,
+        "peak over the run of /series/pile_height_mean (crest of the pile averaged over the waterline width)",
+        "measured: the run's maximum");
+  else
+    in.set("rubble_height", &I::rubble_height, an.rubble_height, IsoSource::Default, "/analysis/rubble_height");
+  const double alpha = in.values.cone_angle_deg;
+  if (an.rubble_slope_deg > 0)
+    in.set("rubble_slope_deg", &I::rubble_slope_deg, an.rubble_slope_deg, IsoSource::Scene, "/analysis/rubble_slope_deg");
+  else if (p && p->slope_deg > 0 && p->slope_deg < alpha)
+    in.set("rubble_slope_deg", &I::rubble_slope_deg, p->slope_deg, IsoSource::Measured,
+        "the pile's slope (least-squares fit of its crest against the distance ahead of the cone face): " +
+            peak_note(*p, "slope_deg"), peak_origin(*p));
+  else
+    in.set("rubble_slope_deg", &I::rubble_slope_deg, 0.8 * alpha, IsoSource::Default,
+        "0.8 x cone_angle_deg; " + (p && std::isfinite(p->slope_deg)
+                                         ? "the measured slope, " + json_fmt(p->slope_deg) + " deg, is outside (0, " +
+                                               json_fmt(alpha) + ") deg"
+                                         : std::string("no pile slope measured")),
+        "assumed 0.8 x cone angle");
+  if (given(s, "/analysis/rubble_porosity"))
+    in.set("rubble_porosity", &I::rubble_porosity, an.rubble_porosity, IsoSource::Scene, "/analysis/rubble_porosity");
+  else if (p && p->porosity >= 0.0 && p->porosity < 1.0)
+    in.set("rubble_porosity", &I::rubble_porosity, p->porosity, IsoSource::Measured,
+        "the pile's porosity (1 - particle volume / envelope volume above the waterline): " +
+            peak_note(*p, "porosity"), peak_origin(*p));
+  else if (m.ridge)
+    in.set("rubble_porosity", &I::rubble_porosity, m.ridge->porosity, IsoSource::RidgeFile,
+        "keel porosity of " + m.ridge->path + " (no pile porosity measured)");
+  else
+    in.set("rubble_porosity", &I::rubble_porosity, an.rubble_porosity, IsoSource::Default, "/analysis/rubble_porosity");
+  if (given(s, "/analysis/rubble_porosity"))
+    in.set("keel_porosity", &I::keel_porosity, an.rubble_porosity, IsoSource::Scene,
+        "/analysis/rubble_porosity (one porosity for the pile and the keel)");
+  else if (m.ridge)
+    in.set("keel_porosity", &I::keel_porosity, m.ridge->porosity, IsoSource::RidgeFile, "keel porosity of " + m.ridge->path);
+  else
+    in.set("keel_porosity", &I::keel_porosity, an.rubble_porosity, IsoSource::Default, "/analysis/rubble_porosity");
+}
+
 void set_rubble_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& m) {
   const auto& an = s.analysis;
-  // The rubble pile.
-  if (given(s, "/analysis/rubble_height"))
-    in.set("rubble_height", &analysis::IsoInputs::rubble_height, an.rubble_height, IsoSource::Scene, "/analysis/rubble_height");
-  else if (m.rubble_height)
-    in.set("rubble_height", &analysis::IsoInputs::rubble_height, *m.rubble_height, IsoSource::Measured,
-        "peak of /series/pile_height_mean (crest of the pile averaged over the waterline width)");
-  else
-    in.set("rubble_height", &analysis::IsoInputs::rubble_height, an.rubble_height, IsoSource::Default, "/analysis/rubble_height");
-  if (given(s, "/analysis/rubble_porosity"))
-    in.set("rubble_porosity", &analysis::IsoInputs::rubble_porosity, an.rubble_porosity, IsoSource::Scene,
-        "/analysis/rubble_porosity");
-  else if (m.ridge)
-    in.set("rubble_porosity", &analysis::IsoInputs::rubble_porosity, m.ridge->porosity, IsoSource::RidgeFile,
-        "keel porosity of " + m.ridge->path + " (used for the pile and the keel)");
-  else
-    in.set("rubble_porosity", &analysis::IsoInputs::rubble_porosity, an.rubble_porosity, IsoSource::Default,
-        "/analysis/rubble_porosity");
+  set_pile_inputs(in, s, m);
   in.set("rubble_cohesion", &analysis::IsoInputs::rubble_cohesion, an.rubble_cohesion,
       scene_or_default(s, "/analysis/rubble_cohesion"), "/analysis/rubble_cohesion");
-  if (an.rubble_slope_deg > 0)
-    in.set("rubble_slope_deg", &analysis::IsoInputs::rubble_slope_deg, an.rubble_slope_deg, IsoSource::Scene,
-        "/analysis/rubble_slope_deg");
-  else
-    in.set("rubble_slope_deg", &analysis::IsoInputs::rubble_slope_deg, 0.8 * in.values.cone_angle_deg, IsoSource::Default,
-        "0.8 x cone_angle_deg");
   in.set("rubble_friction_angle_deg", &analysis::IsoInputs::rubble_friction_angle_deg, an.rubble_friction_angle_deg,
       scene_or_default(s, "/analysis/rubble_friction_angle_deg"), "/analysis/rubble_friction_angle_deg");
 }
@@ -233,14 +286,15 @@ void set_keel_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& 
         "keel depth " + json_fmt(m.ridge->keel_depth) + " m below the waterline" +
             (frozen ? " frozen at " + json_fmt(depth) + " m (the cone base)" : std::string()) +
             " minus the consolidated layer's underside at " + json_fmt(m.ridge->layer_bottom_depth) + " m, " +
-            m.ridge->path);
+            m.ridge->path,
+        frozen ? "ridge_file, frozen at " + fmt_g(depth, 3) + " m below the waterline (the cone base)" : "ridge_file");
   } else {
     in.set("keel_depth", &analysis::IsoInputs::keel_depth, 0.0, IsoSource::Default, "no keel");
   }
   if (in.values.keel_depth > 0.0) {
     const double phi = in.values.rubble_friction_angle_deg * std::numbers::pi / 180.0;
     const double mu_phi = std::tan(std::numbers::pi / 4.0 + phi / 2.0);
-    const double gamma_e = (1.0 - in.values.rubble_porosity) * (in.values.water_density - in.values.ice_density) * in.values.gravity;
+    const double gamma_e = (1.0 - in.values.keel_porosity) * (in.values.water_density - in.values.ice_density) * in.values.gravity;
     const double z_top = level - keel_top_depth - s.structure.position.z();  // pier frame
     in.set("keel_width", &analysis::IsoInputs::keel_width,
         keel_width_on_pier(pier, z_top, in.values.keel_depth, mu_phi, gamma_e, in.values.rubble_cohesion),
@@ -248,7 +302,8 @@ void set_keel_inputs(InputSetter& in, const scene::Scene& s, const IsoMeasured& 
         "pier diameter weighted by the plug-failure pressure over the keel, z = " + json_fmt(z_top) + " to " +
             json_fmt(z_top - in.values.keel_depth) + " m in the pier's frame (cone base " +
             json_fmt(2.0 * mesh::pier_cone_radius(pier, pier.cone_bottom_z)) + " m at z = " +
-            json_fmt(pier.cone_bottom_z) + " m, shaft " + json_fmt(pier.shaft_diameter) + " m)");
+            json_fmt(pier.cone_bottom_z) + " m, shaft " + json_fmt(pier.shaft_diameter) + " m)",
+        "the pier's profile over the keel's depth");
   } else {
     in.set("keel_width", &analysis::IsoInputs::keel_width, in.values.waterline_diameter, scene_or_default(s, "/structure/pier"),
         "no keel: the waterline diameter");
@@ -288,6 +343,7 @@ IsoAssembly assemble_iso_inputs(const scene::Scene& s, const IsoMeasured& m) {
     r.unit = analysis::iso_input_unit(key);
     r.source = it->second.source;
     r.note = it->second.note;
+    r.origin = it->second.origin;
     out.records.push_back(std::move(r));
   }
   return out;

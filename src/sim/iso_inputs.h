@@ -15,9 +15,14 @@
 //   poisson_ratio
 //   flexural_strength  calibrated > material.flexural_strength > analysis.flexural_strength
 //                      (scene/default)
-//   rubble_height      analysis.rubble_height (scene) > the run's peak of the ISO-consistent
-//                      pile height /series/pile_height_mean (measured) > analysis default
-//   rubble_porosity    analysis.rubble_porosity (scene) > the ridge file's keel porosity > default
+//   rubble_height      analysis.rubble_height (scene) > the ISO-consistent pile height at the
+//                      load peak (measured: PileAtLoadPeak) > the run's peak of
+//                      /series/pile_height_mean (measured) > analysis default
+//   rubble_slope_deg   analysis.rubble_slope_deg (scene) > the pile's slope at the load peak when
+//                      in (0, cone angle) (measured) > 0.8 x cone angle (assumed, default)
+//   rubble_porosity    analysis.rubble_porosity (scene) > the pile's porosity at the load peak
+//                      (measured) > the ridge file's keel porosity > default
+//   keel_porosity      analysis.rubble_porosity (scene) > the ridge file's keel porosity > default
 //   keel_depth         analysis.keel_depth (scene) > ridge file: its keel depth below the
 //                      waterline minus the depth of its consolidated layer's underside > 0 (default)
 //   keel_width         the load-weighted width of the pier over the keel's depth range
@@ -26,6 +31,7 @@
 #pragma once
 
 #include "sim/calibrated_ice.h"
+#include "sim/metrics.h"
 #include "analysis/iso19906.h"
 #include "bonded/particle_store.h"
 #include "mesh/pier.h"
@@ -48,6 +54,9 @@ struct IsoInputRecord {
   std::string unit;    ///< "m", "Pa", "deg", "" (dimensionless), ...
   IsoSource source = IsoSource::Default;
   std::string note;    ///< how it was obtained, for people (may be empty)
+  /// The source in a few words for the run summary and /analysis/iso/inputs/<key> "origin":
+  /// "scene", "measured at t = 28.1 to 29.1 s (load peak)", "assumed 0.8 x cone angle", ...
+  std::string origin;
 };
 
 /// What a ridge file says about its keel (sim::BlockSetup::ridge).
@@ -61,7 +70,9 @@ struct RidgeKeel {
 /// What the run measured (each absent when not measured).
 struct IsoMeasured {
   std::optional<double> thickness;      ///< mean thickness of the built lattice, m
-  std::optional<double> rubble_height;  ///< peak of /series/pile_height_mean, m
+  std::optional<double> rubble_height;  ///< the run's peak of /series/pile_height_mean, m
+  /// The pile at the load peak (h_r, slope, porosity; NaN members: not measured).
+  std::optional<PileAtLoadPeak> at_peak;
   std::optional<RidgeKeel> ridge;
   std::optional<CalibratedIce> calibrated;  ///< the lattice's E, nu, flexural strength ("calibrated" model)
   /// m below the waterline: the ridge file's keel counts down to this depth only, the ISO load

@@ -77,6 +77,8 @@ double front_radius(const nlohmann::json& j, double h) {
                             {"neck_height", &pp.neck_height}, {"shaft_diameter", &pp.shaft_diameter},
                             {"shaft_bottom_z", &pp.shaft_bottom_z}})
     *field = number_at(j, P(std::string("/structure/pier/") + key), *field);
+  if (!j.contains(P("/structure/pier/neck_height")))  // the column up to the deck (scene.cpp, read_pier)
+    pp.neck_height = number_at(j, P("/structure/pier/deck_z"), mesh::kPierDefaultDeckZ) - pp.cone_top_z;
   const double level = number_at(j, P("/water/level"), 0.0);
   const double draft = h * number_at(j, P("/material/density"), 920.0) / number_at(j, P("/water/density"), 1025.0);
   const double lo = level - draft, hi = lo + h;
@@ -183,6 +185,40 @@ void pile_metrics(std::vector<Metric>& m, const io::RunFileReader& f) {
                "peak of the highest ice above the waterline over the structure's upstream half" + clock});
 }
 
+PileAtLoadPeak pile_at_peak(const io::RunFileReader& f, const LoadHistory& h, double width) {
+  PileAtLoadPeak p{analysis::load_peak_window(h.t, h.fh, h.t_start, width), kNaN, kNaN, kNaN};
+  const std::string g = std::string(kPileClockGroup) + "/";
+  if (!f.has(g + "time")) return p;
+  const std::vector<double> t = f.doubles(g + "time");
+  const auto mean = [&](const char* name) {
+    return f.has(g + name) ? analysis::finite_window_mean(t, f.doubles(g + name), p.window.t0, p.window.t1) : kNaN;
+  };
+  p.height_mean = mean("height_mean");
+  p.slope_deg = mean("slope_deg");
+  p.porosity = mean("porosity");
+  return p;
+}
+
+void load_peak_metrics(std::vector<Metric>& m, const io::RunFileReader& f, const LoadHistory& h, double width) {
+  const PileAtLoadPeak p = pile_at_peak(f, h, width);
+  const std::string w = json_fmt(width);
+  const std::string at = " over the window of the load peak (the " + w +
+                         " s of the peak moving mean of the horizontal load, the whole run when it is shorter; "
+                         "mean of the /pile_per_clock samples in it); NaN without a pile";
+  m.push_back({"load_h_peak_window_start", p.window.t0, "s",
+               "start of the window of the peak " + w + " s moving mean of the horizontal load (the run's start "
+               "when it is shorter than " + w + " s)"});
+  m.push_back({"load_h_peak_window_end", p.window.t1, "s", "end of that window"});
+  m.push_back({"pile_height_mean_at_load_peak", p.height_mean, "m",
+               "ISO-consistent pile height (mean crest over the waterline width)" + at});
+  m.push_back({"pile_slope_deg_at_load_peak", p.slope_deg, "deg",
+               "rubble slope angle (least-squares slope of the pile's crest against the distance ahead of the "
+               "cone face)" + at});
+  m.push_back({"pile_porosity_at_load_peak", p.porosity, "1",
+               "pile porosity (1 - particle volume / envelope volume from the waterline to the crest, over the "
+               "pile's cells)" + at});
+}
+
 void state_metrics(std::vector<Metric>& m, const io::RunFileReader& f) {
   pile_metrics(m, f);
   // The last row of /series is the last step's whatever the output interval: state at the end.
@@ -271,7 +307,18 @@ std::vector<Metric> compute_run_metrics(const std::string& path, const MetricsOp
                "largest horizontal load of a single DEM step"});
   m.push_back({"steps", static_cast<double>(h.t.size()), "1", "DEM steps in the per-step load"});
   state_metrics(m, f);
+  load_peak_metrics(m, f, h, opt.moving_window);
   return m;
+}
+
+PileAtLoadPeak pile_at_load_peak(const std::string& path, double width) {
+  std::optional<io::RunFileReader> opened;
+  try {
+    opened.emplace(path);
+  } catch (const std::exception& e) {
+    throw InputError(path, std::string("cannot read the run file (") + e.what() + ")");
+  }
+  return pile_at_peak(*opened, read_load(*opened, path), width);
 }
 
 std::vector<Metric> read_run_metrics(const std::string& path) {

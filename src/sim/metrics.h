@@ -38,6 +38,18 @@ struct MetricsOptions {
 /// structure, or has no per-step load.
 std::vector<analysis::Metric> compute_run_metrics(const std::string& path, const MetricsOptions& opt = {});
 
+/// The pile at the load peak (analysis/metrics.h, M5): the window of the peak `width` s moving
+/// mean of the horizontal load (the whole run when it is shorter) and the means of the pile clock's
+/// samples in it (/pile_per_clock; NaN where none is finite: no pile, no pier, or a file without
+/// the series).
+struct PileAtLoadPeak {
+  analysis::PeakWindow window;
+  double height_mean, slope_deg, porosity;
+};
+
+/// From the run file at `path` (closed); InputError as compute_run_metrics.
+PileAtLoadPeak pile_at_load_peak(const std::string& path, double width = 1.0);
+
 /// /analysis/metrics of the run file, in name order; empty when the group is absent.
 std::vector<analysis::Metric> read_run_metrics(const std::string& path);
 

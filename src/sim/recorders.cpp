@@ -1,6 +1,7 @@
 // The recorders of a run: one class per family of series, and the list (make_recorders).
 #include "sim/recorder.h"
 
+#include "analysis/metrics.h"
 #include "analysis/pile_height.h"
 #include "common/ice_formulas.h"
 #include "common/state_archive.h"
@@ -338,22 +339,33 @@ class PileMeanRecorder : public Recorder {
   RunningMax max_;
 };
 
-// ---- /pile_per_clock/{time,height_top,height_mean}: /series/pile_height and
-// /series/pile_height_mean (pier only; NaN otherwise) every kPileClock s, on a clock of its own,
+// ---- /pile_per_clock/{time,height_top,height_mean,slope_deg,porosity}: /series/pile_height,
+// /series/pile_height_mean and the pile's slope and porosity (analysis/metrics.h, P1 and P2; pier
+// only, NaN otherwise or without a pile) every kPileClock s, on a clock of its own,
 // so that their peaks do not depend on the output interval. Rows at t = 0 and every
 // pile_clock_every steps; none at a stop between two (Recorders::write_stop), so a restarted
 // run's rows are an uninterrupted run's.
 class PileClockRecorder : public Recorder {
  public:
-  PileClockRecorder(const analysis::PileProbe& probe, std::optional<analysis::PileBand> band, std::uint64_t every,
-                    const par::Comm& comm)
-      : probe_(probe), band_(std::move(band)), every_(every), comm_(comm) {}
+  PileClockRecorder(const analysis::PileProbe& probe, std::optional<analysis::PileBand> band,
+                    std::optional<analysis::PileShapeGrid> shape, std::uint64_t every, const par::Comm& comm)
+      : probe_(probe), band_(std::move(band)), shape_(std::move(shape)), every_(every), comm_(comm) {}
   void declare(io::RunFile& f) override {
     const std::string g = kPileClockGroup;
     id_time_ = f.add_series(g + "/time", 1, "s", "simulated time, every " + json_fmt(kPileClock) + " s");
     id_top_ = f.add_series(g + "/height_top", 1, "m", "as /series/pile_height, every " + json_fmt(kPileClock) + " s");
     id_mean_ = f.add_series(g + "/height_mean", 1, "m",
                             "as /series/pile_height_mean (NaN without a pier), every " + json_fmt(kPileClock) + " s");
+    const std::string grid = shape_ ? " (cells of " + json_fmt(shape_->cell) + " m up to " + json_fmt(shape_->ahead) +
+                                          " m ahead of the cone face on the waterline, pile cells " +
+                                          json_fmt(shape_->min_height) + " m above the water)"
+                                    : std::string();
+    id_slope_ = f.add_series(g + "/slope_deg", 1, "deg",
+                             "rubble slope angle: least-squares slope of the pile's crest against the distance ahead "
+                             "of the cone face" + grid + " (docs/metrics.md); NaN without a pile or a pier");
+    id_porosity_ = f.add_series(g + "/porosity", 1, "1",
+                                "pile porosity: 1 - particle volume / envelope volume (waterline to crest) over the "
+                                "pile's cells" + grid + " (docs/metrics.md); NaN without a pile or a pier");
   }
   bool due(std::uint64_t k, const Schedule&) const override { return k % every_ == 0; }
   void write(Simulation& sim, io::RunFile& f) override {
@@ -369,17 +381,28 @@ class PileClockRecorder : public Recorder {
       comm_.max(crest.data(), static_cast<int>(crest.size()));
       mean = analysis::mean_crest(crest);
     }
+    analysis::PileShape shape{std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::quiet_NaN()};
+    if (shape_) {
+      shape_->axis_point = probe_.axis_point;
+      analysis::PileShapeCells c = analysis::pile_shape_cells(*shape_, ps.x.data(), ps.radius.data(), ps.owned());
+      comm_.max(c.crest.data(), static_cast<int>(c.crest.size()));
+      comm_.sum(c.volume.data(), static_cast<int>(c.volume.size()));
+      shape = analysis::pile_shape(*shape_, c);
+    }
     f.append(id_time_, &t);
     f.append(id_top_, &top);
     f.append(id_mean_, &mean);
+    f.append(id_slope_, &shape.slope_deg);
+    f.append(id_porosity_, &shape.porosity);
   }
 
  private:
   analysis::PileProbe probe_;
   std::optional<analysis::PileBand> band_;
+  std::optional<analysis::PileShapeGrid> shape_;
   std::uint64_t every_;
   const par::Comm& comm_;
-  int id_time_ = -1, id_top_ = -1, id_mean_ = -1;
+  int id_time_ = -1, id_top_ = -1, id_mean_ = -1, id_slope_ = -1, id_porosity_ = -1;
 };
 
 // ---- the blocks' and particles' mean speeds over the run's last kRestWindow seconds (the at-rest check)
@@ -762,6 +785,22 @@ analysis::PileBand pile_band(const Simulation& sim, const scene::Scene& s) {
   return band;
 }
 
+/// The grid of the pile's slope and porosity (analysis/metrics.h, P1 and P2): cells one particle
+/// diameter D across, from the cone face on the waterline up to one waterline diameter ahead (a
+/// pile steeper than atan(h_r / w) ends within it); pile cells' crests more than D above the
+/// water (the level sheet's freeboard is less).
+analysis::PileShapeGrid pile_shape_grid(const scene::Scene& s) {
+  analysis::PileShapeGrid g;
+  const Vec3& v = s.structure.velocity;
+  g.upstream = Vec3(v.x(), v.y(), 0.0).norm() > 0 ? Vec3(v.x(), v.y(), 0.0).normalized() : Vec3::UnitX();
+  g.radius = 0.5 * s.structure.pier.waterline_diameter;
+  g.ahead = s.structure.pier.waterline_diameter;
+  g.cell = s.material.particle_diameter;
+  g.min_height = s.material.particle_diameter;
+  g.water_level = s.water.enabled ? s.water.level : 0.0;
+  return g;
+}
+
 }  // namespace
 
 std::uint64_t pile_clock_every(const Schedule& sc) {
@@ -786,8 +825,11 @@ std::vector<std::unique_ptr<Recorder>> make_recorders(const Simulation& sim, con
   if (st) r.push_back(std::make_unique<LoadPerStepRecorder>());
   if (st) {
     std::optional<analysis::PileBand> band;
+    std::optional<analysis::PileShapeGrid> shape;
     if (s.structure.type == "pier") band = pile_band(sim, s);
-    r.push_back(std::make_unique<PileClockRecorder>(pile_probe(sim, s), band, pile_clock_every(sim.schedule()), comm));
+    if (s.structure.type == "pier") shape = pile_shape_grid(s);
+    r.push_back(
+        std::make_unique<PileClockRecorder>(pile_probe(sim, s), band, shape, pile_clock_every(sim.schedule()), comm));
   }
   return r;
 }

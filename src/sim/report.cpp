@@ -8,6 +8,7 @@
 #include "sim/build.h"
 
 #include <cmath>
+#include <cstdio>
 #include <cstring>
 #include <utility>
 
@@ -39,9 +40,67 @@ analysis::Pieces gather_pieces(const bonded::Engine& e, const par::Comm& comm) {
   return analysis::find_pieces(std::move(recs), bonds);
 }
 
+/// The ISO 19906 estimate beside the run (a parametric pier): inputs with their sources, the
+/// ridge load, the keel frozen at the cone base, F_H with the highest particle as h_r.
+void add_iso(RunReport& an, const Simulation& sim, const scene::Scene& s, const RunFigures& f) {
+  if (!(s.gravity.norm() > 0)) {
+    an.iso_note = "ISO 19906 estimate not computed: gravity is zero (the cone formulas need g > 0)";
+  } else {
+    try {
+      IsoMeasured m;
+      if (sim.built().lattice_thickness > 0) m.thickness = sim.built().lattice_thickness;
+      if (f.has_pile_mean) m.rubble_height = f.max_pile_mean;
+      m.at_peak = an.at_peak;
+      m.ridge = sim.blocks().ridge;
+      if (sim.built().calibrated.model == "calibrated") m.calibrated = sim.built().calibrated;
+      const IsoAssembly as = assemble_iso_inputs(s, m);
+      an.iso_in = as.in;
+      an.iso_records = as.records;
+      an.iso = analysis::compute_iso(an.iso_in);
+      an.has_iso = true;
+      // Any figure that is not finite (degenerate inputs) leaves the estimate out, with the reason.
+      const nlohmann::json result = analysis::iso_to_json(an.iso);
+      for (const auto& [k, v] : result.items())
+        if (!std::isfinite(v.get<double>()) && an.has_iso) {
+          an.has_iso = false;
+          an.iso_note = "ISO 19906 estimate not computed: " + k + " is not finite for these inputs";
+        }
+      for (const auto& r : an.iso_records)
+        if (!std::isfinite(r.value) && an.has_iso) {
+          an.has_iso = false;
+          an.iso_note = "ISO 19906 estimate not computed: input " + r.key + " is not finite";
+        }
+      if (an.has_iso && m.ridge && m.ridge->keel_depth > cone_base_depth(s)) {  // the keel frozen at the cone base
+        m.keel_depth_limit = cone_base_depth(s);
+        const analysis::IsoInputs fin = assemble_iso_inputs(s, m).in;
+        const analysis::IsoResult fr = analysis::compute_iso(fin);
+        if (std::isfinite(fr.F_total)) {
+          an.has_iso_frozen = true;
+          an.iso_frozen_in = fin;
+          an.iso_frozen_depth = *m.keel_depth_limit;
+          an.iso_frozen = fr;
+        }
+      }
+      if (an.has_iso) {  // beside it: F_H with the old pile height, the highest particle
+        analysis::IsoInputs top = an.iso_in;
+        top.rubble_height = f.max_pile;
+        try {
+          const double fh = analysis::compute_iso(top).F_H;
+          an.iso_F_H_top_particle = std::isfinite(fh) ? fh : 0.0;
+        } catch (const InputError&) {
+          an.iso_F_H_top_particle = 0.0;
+        }
+      }
+    } catch (const InputError& err) {
+      an.iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
+    }
+  }
+}
+
 }  // namespace
 
-RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFigures& f, const par::Comm& comm) {
+RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFigures& f, const par::Comm& comm,
+                      const std::optional<PileAtLoadPeak>& at_peak) {
   RunReport an;
   an.pieces = gather_pieces(sim.engine(), comm);
   an.dem_peak = f.peak_h;
@@ -79,55 +138,9 @@ RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFig
   }
   an.has_pile_mean = f.has_pile_mean;
   an.max_pile_mean = f.max_pile_mean;
-  if (sim.has_structure() && s.structure.type == "pier" && !(s.gravity.norm() > 0)) {
-    an.iso_note = "ISO 19906 estimate not computed: gravity is zero (the cone formulas need g > 0)";
-  } else if (sim.has_structure() && s.structure.type == "pier") {
-    try {
-      IsoMeasured m;
-      if (sim.built().lattice_thickness > 0) m.thickness = sim.built().lattice_thickness;
-      if (f.has_pile_mean) m.rubble_height = f.max_pile_mean;
-      m.ridge = sim.blocks().ridge;
-      if (sim.built().calibrated.model == "calibrated") m.calibrated = sim.built().calibrated;
-      const IsoAssembly as = assemble_iso_inputs(s, m);
-      an.iso_in = as.in;
-      an.iso_records = as.records;
-      an.iso = analysis::compute_iso(an.iso_in);
-      an.has_iso = true;
-      // Any figure that is not finite (degenerate inputs) leaves the estimate out, with the reason.
-      const nlohmann::json result = analysis::iso_to_json(an.iso);
-      for (const auto& [k, v] : result.items())
-        if (!std::isfinite(v.get<double>()) && an.has_iso) {
-          an.has_iso = false;
-          an.iso_note = "ISO 19906 estimate not computed: " + k + " is not finite for these inputs";
-        }
-      for (const auto& r : an.iso_records)
-        if (!std::isfinite(r.value) && an.has_iso) {
-          an.has_iso = false;
-          an.iso_note = "ISO 19906 estimate not computed: input " + r.key + " is not finite";
-        }
-      if (an.has_iso && m.ridge && m.ridge->keel_depth > cone_base_depth(s)) {  // the keel frozen at the cone base
-        m.keel_depth_limit = cone_base_depth(s);
-        const analysis::IsoResult fr = analysis::compute_iso(assemble_iso_inputs(s, m).in);
-        if (std::isfinite(fr.F_total)) {
-          an.has_iso_frozen = true;
-          an.iso_frozen_depth = *m.keel_depth_limit;
-          an.iso_frozen = fr;
-        }
-      }
-      if (an.has_iso) {  // beside it: F_H with the old pile height, the highest particle
-        analysis::IsoInputs top = an.iso_in;
-        top.rubble_height = f.max_pile;
-        try {
-          const double fh = analysis::compute_iso(top).F_H;
-          an.iso_F_H_top_particle = std::isfinite(fh) ? fh : 0.0;
-        } catch (const InputError&) {
-          an.iso_F_H_top_particle = 0.0;
-        }
-      }
-    } catch (const InputError& err) {
-      an.iso_note = std::string("ISO 19906 estimate not computed: ") + err.what();
-    }
-  }
+  an.max_pile_mean_time = f.max_pile_mean_time;
+  an.at_peak = at_peak;
+  if (sim.has_structure() && s.structure.type == "pier") add_iso(an, sim, s, f);
   return an;
 }
 
@@ -266,6 +279,20 @@ void write_cost(io::RunFileEditor& f, const RunCost& c) {
                               "largest; a restarted run's figures cover every process (docs/output.md)"));
 }
 
+}  // namespace
+
+std::string yardstick(const RunReport& a) {
+  return a.iso.F_K > 0 ? "DEM/ISO (F_H + F_K)" : "DEM/ISO (F_H, no keel)";
+}
+
+std::string frozen_yardstick(const RunReport& a) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.3g", a.iso_frozen_depth);
+  return std::string("DEM/ISO (keel frozen at ") + b + " m)";
+}
+
+namespace {
+
 /// /analysis/iso: the results, every input (flat value attributes as before, and per input a
 /// group /analysis/iso/inputs/<key> with value, unit, source and note), the DEM figures.
 void write_iso(io::RunFileEditor& f, const RunReport& a) {
@@ -284,14 +311,23 @@ void write_iso(io::RunFileEditor& f, const RunReport& a) {
     f.set_attribute(gi, "value", r.value);
     f.set_attribute(gi, "unit", r.unit.empty() ? std::string("1") : r.unit);
     f.set_attribute(gi, "source", std::string(to_string(r.source)));
+    f.set_attribute(gi, "origin", r.origin);
     if (!r.note.empty()) f.set_attribute(gi, "note", r.note);
   }
   f.set_attribute(g, "dem_peak_horizontal_force", a.dem_peak);
   f.set_attribute(g, "dem_max_pile_height", a.max_pile);
   if (a.has_pile_mean) f.set_attribute(g, "dem_max_pile_height_mean", a.max_pile_mean);
+  if (a.has_pile_mean) f.set_attribute(g, "dem_max_pile_height_mean_time", a.max_pile_mean_time);
+  if (a.at_peak) {
+    f.set_attribute(g, "load_peak_window_start", a.at_peak->window.t0);
+    f.set_attribute(g, "load_peak_window_end", a.at_peak->window.t1);
+  }
   f.set_attribute(g, "dem_over_iso", analysis::dem_over_iso(a.dem_peak, a.iso));
+  f.set_attribute(g, "dem_over_iso_yardstick", yardstick(a));
   f.set_attribute(g, "dem_over_iso_F_H", a.iso.F_H > 0 ? a.dem_peak / a.iso.F_H : 0.0);
+  f.set_attribute(g, "dem_over_iso_F_H_yardstick", std::string("DEM/ISO (F_H only)"));
   if (a.has_iso_frozen) {
+    f.set_attribute(g, "dem_over_iso_keel_frozen_yardstick", frozen_yardstick(a));
     f.set_attribute(g, "keel_frozen_depth", a.iso_frozen_depth);
     f.set_attribute(g, "keel_frozen_F_K", a.iso_frozen.F_K);
     f.set_attribute(g, "keel_frozen_F_total", a.iso_frozen.F_total);
@@ -303,10 +339,12 @@ void write_iso(io::RunFileEditor& f, const RunReport& a) {
   }
   f.set_attribute(g, "description",
                   std::string("ISO 19906 (Croasdale & Cammaert + Dolgopolov keel) load for the run's ice; inputs "
-                              "and their sources in inputs/; rubble_height = peak of /series/pile_height_mean "
-                              "unless the scene gives one; dem_over_iso = dem_peak_horizontal_force / F_total (F_H + F_K, "
+                              "and their sources in inputs/ (value, unit, source, origin, note); rubble_height = the "
+                              "ISO-consistent pile height at the load peak (load_peak_window_start to _end) unless the "
+                              "scene gives one, dem_max_pile_height_mean the run's maximum; dem_over_iso = dem_peak_horizontal_force / F_total (F_H + F_K, "
                               "the ridge load), dem_over_iso_F_H against the level-ice term alone; keel_frozen_* = the "
-                              "estimate with the keel frozen at the cone base (keel_frozen_depth below the waterline); "
+                              "estimate with the keel frozen at the cone base (keel_frozen_depth below the waterline); each "
+                              "ratio's *_yardstick names what it is judged against; "
                               "F_H_top_particle_pile = F_H with the highest particle (dem_max_pile_height) as the pile "
                               "height instead; forces in N"));
 }

@@ -14,6 +14,7 @@
 #include "sim/relaxation_cache.h"
 
 #include <cstdint>
+#include <optional>
 #include <string>
 
 namespace hs::par {
@@ -39,10 +40,14 @@ struct RunReport {
   bool has_iso_frozen = false;
   double iso_frozen_depth = 0.0;  ///< m below the waterline, cone_base_depth
   analysis::IsoResult iso_frozen;
+  analysis::IsoInputs iso_frozen_in;  ///< its inputs (keel_depth the frozen one)
+  /// The pile at the load peak the estimate used (rank 0; absent without a pier or on other ranks).
+  std::optional<PileAtLoadPeak> at_peak;
   double dem_peak = 0.0;       ///< N, peak horizontal force on the structure (output-row means)
   double max_pile = 0.0;       ///< m, peak of /series/pile_height (highest particle)
   bool has_pile_mean = false;
   double max_pile_mean = 0.0;  ///< m, peak of /series/pile_height_mean
+  double max_pile_mean_time = 0.0;  ///< s, when it peaked
   bool has_hybrid = false;
   bridge::HybridReport hybrid;
   std::uint64_t block_bonds_broken = 0;  ///< block-particle freeze bonds broken
@@ -62,7 +67,16 @@ struct RunReport {
 
 /// Analyses the finished run. Collective: every rank calls it; the particles and bonds are
 /// gathered on rank 0, which alone gets the pieces.
-RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFigures& f, const par::Comm& comm);
+/// `at_peak`: the pile at the load peak (sim/metrics.h, read from the closed run file on rank 0),
+/// which gives ISO its h_r, slope and porosity (sim/iso_inputs.h).
+RunReport analyse_run(const Simulation& sim, const scene::Scene& s, const RunFigures& f, const par::Comm& comm,
+                      const std::optional<PileAtLoadPeak>& at_peak = std::nullopt);
+
+/// What a run's DEM/ISO ratios are judged against, as printed and stored:
+/// "DEM/ISO (F_H + F_K)" (a keel; "DEM/ISO (F_H, no keel)" without), and with the keel frozen at
+/// the cone base "DEM/ISO (keel frozen at 4 m)" (m below the waterline).
+std::string yardstick(const RunReport& a);
+std::string frozen_yardstick(const RunReport& a);
 
 /// Adds /analysis (pieces, iso, hybrid, relaxation, cost) to the closed run file. Rank 0 only.
 void write_analysis(const std::string& path, const RunReport& r);

@@ -427,6 +427,25 @@ TEST(Iso19906Json, MissingKeysTakeDefaults) {
   EXPECT_NO_THROW(compute_iso(iso_inputs_from_json(json::object())));
 }
 
+// The keel's porosity sets F_K alone; a JSON input without it takes rubble_porosity (ISO's one
+// porosity).
+TEST(Iso19906, TheKeelHasItsOwnPorosity) {
+  IsoInputs in = paper_case();
+  in.keel_depth = 4.0;
+  in.rubble_porosity = 0.2;
+  in.keel_porosity = 0.4;
+  const IsoResult r = compute_iso(in);
+  IsoInputs pile = in;
+  pile.rubble_porosity = 0.4;  // the pile's porosity does not move F_K
+  EXPECT_EQ(compute_iso(pile).F_K, r.F_K);
+  IsoInputs keel = in;
+  keel.keel_porosity = 0.2;  // the keel's does not move F_H
+  EXPECT_EQ(compute_iso(keel).F_H, r.F_H);
+  EXPECT_GT(compute_iso(keel).F_K, r.F_K);
+  EXPECT_EQ(iso_inputs_from_json(json{{"rubble_porosity", 0.35}}).keel_porosity, 0.35);
+  EXPECT_EQ(iso_inputs_from_json(json{{"rubble_porosity", 0.35}, {"keel_porosity", 0.4}}).keel_porosity, 0.4);
+}
+
 TEST(Iso19906Json, RoundTrip) {
   // inputs -> JSON text -> inputs, exactly.
   const IsoInputs in = paper_case();

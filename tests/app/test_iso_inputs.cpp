@@ -129,6 +129,47 @@ TEST(IsoInputs, RidgeSceneTakesTheKeelBelowTheConsolidatedLayerAndThePorosityFro
   EXPECT_GT(hs::analysis::compute_iso(full).F_K, 1.1 * hs::analysis::compute_iso(a.in).F_K);  // measured 1.17
 }
 
+// ISO's pile is the pile at the load peak (sim::PileAtLoadPeak): its mean height, slope and
+// porosity over the peak's window, each marked "measured at t = ..."; the run's maximum pile only
+// when the window has no sample; the keel keeps the ridge file's porosity.
+TEST(IsoInputs, ThePileAtTheLoadPeakGivesHeightSlopeAndPorosity) {
+  IsoMeasured m;
+  m.thickness = 0.98;
+  m.rubble_height = 6.44;  // the run's maximum
+  m.ridge = keel_8m();
+  m.at_peak = hs::sim::PileAtLoadPeak{{2.5e6, 28.1, 29.1, false}, 5.9, 33.0, 0.22};
+  const IsoAssembly a = assemble(pier_scene(), m);
+  expect_complete(a);
+  EXPECT_EQ(a.in.rubble_height, 5.9);
+  EXPECT_EQ(a.record("rubble_height").source, IsoSource::Measured);
+  EXPECT_EQ(a.record("rubble_height").origin, "measured at t = 28.1 to 29.1 s (load peak)");
+  EXPECT_NE(a.record("rubble_height").note.find("the run's maximum 6.44 m"), std::string::npos);
+  EXPECT_EQ(a.in.rubble_slope_deg, 33.0);
+  EXPECT_EQ(a.record("rubble_slope_deg").origin, "measured at t = 28.1 to 29.1 s (load peak)");
+  EXPECT_EQ(a.in.rubble_porosity, 0.22);
+  EXPECT_EQ(a.record("rubble_porosity").source, IsoSource::Measured);
+  EXPECT_EQ(a.in.keel_porosity, 0.42);
+  EXPECT_EQ(a.record("keel_porosity").source, IsoSource::RidgeFile);
+  // F_K follows the keel's porosity, not the pile's.
+  hs::analysis::IsoInputs keel = a.in;
+  keel.rubble_porosity = 0.42;
+  EXPECT_EQ(hs::analysis::compute_iso(keel).F_K, hs::analysis::compute_iso(a.in).F_K);
+  keel.keel_porosity = 0.22;
+  EXPECT_GT(hs::analysis::compute_iso(keel).F_K, 1.05 * hs::analysis::compute_iso(a.in).F_K);
+  // A slope outside (0, cone angle) is not ISO's: 0.8 alpha, assumed; no sample in the window:
+  // the run's maximum pile, the ridge file's porosity.
+  m.at_peak = hs::sim::PileAtLoadPeak{{2.5e6, 28.1, 29.1, false}, NAN, 60.0, NAN};
+  const IsoAssembly b = assemble(pier_scene(), m);
+  EXPECT_NEAR(b.in.rubble_slope_deg, 0.8 * 52.0, 1e-13);
+  EXPECT_EQ(b.record("rubble_slope_deg").source, IsoSource::Default);
+  EXPECT_EQ(b.record("rubble_slope_deg").origin, "assumed 0.8 x cone angle");
+  EXPECT_NE(b.record("rubble_slope_deg").note.find("60 deg, is outside"), std::string::npos);
+  EXPECT_EQ(b.in.rubble_height, 6.44);
+  EXPECT_EQ(b.record("rubble_height").origin, "measured: the run's maximum");
+  EXPECT_EQ(b.in.rubble_porosity, 0.42);
+  EXPECT_EQ(b.record("rubble_porosity").source, IsoSource::RidgeFile);
+}
+
 // The paper's Fig. 7 "frozen at 4 m": the keel counts down to the cone base only.
 TEST(IsoInputs, AKeelFrozenAtTheConeBaseStopsThere) {
   IsoMeasured m;

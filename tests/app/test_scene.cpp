@@ -355,6 +355,13 @@ TEST(SceneStructure, DefaultsAndBuild) {
   EXPECT_EQ(s.structure.pier.waterline_diameter, 14.0);
   EXPECT_EQ(s.structure.pier.cone_angle_deg, 52.0);
   EXPECT_EQ(s.structure.pier.segments, 64);
+  // The column above the cone rises to the deck, z = +20 m, unless the scene says otherwise.
+  EXPECT_EQ(s.structure.pier.cone_top_z + s.structure.pier.neck_height, 20.0);
+  json deck = with_pier();
+  deck["structure"]["pier"] = {{"cone_top_z", 1.5}, {"deck_z", 12.0}};
+  EXPECT_EQ(scene::parse_scene(deck).structure.pier.neck_height, 10.5);
+  deck["structure"]["pier"] = {{"cone_top_z", 1.5}, {"neck_height", 4.0}};
+  EXPECT_EQ(scene::parse_scene(deck).structure.pier.neck_height, 4.0);
   EXPECT_EQ(s.structure.velocity, Vec3(0.4, 0, 0));
   EXPECT_EQ(s.structure.position, Vec3(0, 0, 0));
   EXPECT_EQ(s.structure.friction, 0.1);
@@ -395,6 +402,10 @@ TEST(SceneStructure, Errors) {
   expect_bad("/structure/friction", -1, "/structure/friction", "out of range");
   expect_bad("/analysis/rubble_porosity", 1.0, "/analysis/rubble_porosity", "out of range");
   expect_bad("/analysis/flexural", 1e6, "/analysis/flexural", "unknown key");
+  expect_bad("/structure/pier/deck_z", 1.0, "/structure/pier/deck_z", "must be above cone_top_z = 2 m");
+  json both = minimal();
+  both["structure"]["pier"] = {{"deck_z", 15.0}, {"neck_height", 4.0}};
+  expect_error([&] { scene::parse_scene(both); }, "/structure/pier/deck_z", "not both");
   json j = minimal();
   j["structure"] = {{"type", "mesh"}};
   expect_error([&] { scene::parse_scene(j); }, "/structure/mesh", "missing required field");

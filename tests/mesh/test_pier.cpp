@@ -58,7 +58,7 @@ TEST(MeshPier, VolumeMatchesPolygonalFormulaExactlyAndCircularWithinOnePercent) 
   // Analytic circular volume for the default parameters, computed by hand:
   const double t = std::tan(52.0 * kPi / 180.0);
   const double r1 = 7.0 - 2.0 / t, r2 = 7.0 + 4.0 / t;
-  const double by_hand = kPi * r1 * r1 * 4.0 + kPi * 6.0 / 3.0 * (r1 * r1 + r2 * r2 + r1 * r2) +
+  const double by_hand = kPi * r1 * r1 * 18.0 + kPi * 6.0 / 3.0 * (r1 * r1 + r2 * r2 + r1 * r2) +
                          kPi * 25.0 * 16.0;
   EXPECT_NEAR(pier_volume(p) / by_hand, 1.0, 1e-14);
 }
@@ -70,7 +70,9 @@ TEST(MeshPier, RadiiAndWaterline) {
   EXPECT_DOUBLE_EQ(pier_radius_at(p, 5.0), pier_cone_radius(p, 2.0));
   EXPECT_DOUBLE_EQ(pier_radius_at(p, -10.0), 5.0);
   EXPECT_DOUBLE_EQ(pier_radius_at(p, -4.0), pier_cone_radius(p, -4.0));
-  EXPECT_EQ(pier_radius_at(p, 6.5), 0.0);
+  EXPECT_DOUBLE_EQ(pier_radius_at(p, 6.5), pier_cone_radius(p, 2.0));  // the column, up to the deck
+  EXPECT_DOUBLE_EQ(pier_radius_at(p, 19.9), pier_cone_radius(p, 2.0));
+  EXPECT_EQ(pier_radius_at(p, 20.5), 0.0);
   EXPECT_EQ(pier_radius_at(p, -20.5), 0.0);
 
   // The mesh: corners lie on the circle of radius pier_radius_at; along the corner

@@ -293,6 +293,40 @@ TEST(SphereMeshContact, RandomSpheresOnTheConeMatchBruteForceClosestPoint) {
   EXPECT_GT(tested, 5000);
 }
 
+TEST(SphereMeshContact, TheColumnRisesToTheDeckWithNoCapBelowIt) {
+  // A pile particle above z = +6 m (where a 4 m neck would end in a flat cap) meets the column's
+  // side, which pushes it horizontally and holds nothing up; the only upward face is the deck
+  // cap at z = +20 m. With a 4 m neck the sphere against the column at z = 7 m finds no contact,
+  // and one resting at z = 6 m on the column's top finds an upward normal (the cap).
+  const PierParams p;  // defaults: deck at z = kPierDefaultDeckZ
+  ASSERT_DOUBLE_EQ(p.cone_top_z + p.neck_height, kPierDefaultDeckZ);
+  const TriMesh pier = make_pier(p);
+  double z_max = -1e9;
+  for (const auto& v : pier.vertices) z_max = std::max(z_max, v.z());
+  EXPECT_EQ(z_max, kPierDefaultDeckZ);
+  EXPECT_EQ(pier.triangles.size(), 10u * 64u);  // as many triangles as a short neck: contact cost unchanged
+  const MeshGrid grid(pier, 0.5);
+  Query q;
+  const double half = kPi / 64.0;  // middle of segment 0
+  const Vec3 radial(std::cos(half), std::sin(half), 0.0);
+  const double apothem = pier_cone_radius(p, p.cone_top_z) * std::cos(half), r = 0.1, d = 0.01;
+  for (const double z : {6.05, 7.0, 8.5, 12.0, 19.5}) {
+    const auto& k = q(grid, (apothem + r - d) * radial + Vec3(0, 0, z), r);
+    ASSERT_EQ(k.size(), 1u) << "z = " << z;
+    EXPECT_EQ(pier.part_names[k[0].part], "neck");
+    EXPECT_NEAR(k[0].overlap, d, 1e-12);
+    EXPECT_LT(std::abs(k[0].normal.z()), 1e-12) << "z = " << z;  // measured 0: a vertical face
+  }
+  // A sphere on the axis side of the column's edge at z = 6 m (where the cap was): inside the
+  // column's solid, more than r from any face, so no contact pushes it up.
+  const auto& k = q(grid, (apothem - 0.5) * radial + Vec3(0, 0, 6.0 + r - d), r);
+  for (const auto& c : k) EXPECT_LT(c.normal.z(), 0.5);
+  // Upward normals only at the deck.
+  const auto& top = q(grid, Vec3(0.5, 0.0, kPierDefaultDeckZ + r - d), r);
+  ASSERT_EQ(top.size(), 1u);
+  EXPECT_NEAR(top[0].normal.z(), 1.0, 1e-12);
+}
+
 TEST(SphereMeshContact, ConcaveCornerGivesOneContactPerWall) {
   // In the corner under the annulus, against the shaft: the shaft face and the annulus
   // face both push, each with its own plane overlap.
@@ -331,12 +365,12 @@ TEST(SphereMeshContact, CentreSlightlyInsideIsPushedOut) {
 
 TEST(SphereMeshContact, GridCellSizeDoesNotChangeTheAnswer) {
   const TriMesh pier = make_pier({});
-  const MeshGrid fine(pier, 0.05);    // queries span many cells
+  const MeshGrid fine(pier, 0.05);    // queries span many cells (the ~4 M-cell cap: 0.225 m over the 40 m pier)
   const MeshGrid coarse(pier, 50.0);  // one cell
-  EXPECT_LT(fine.cell_size(), 0.2);
+  EXPECT_LT(fine.cell_size(), 0.25);
   Query a, b;
   std::mt19937_64 rng(11);
-  std::uniform_real_distribution<double> phi(0.0, 2.0 * kPi), z(-21.0, 7.0), dr(-0.6, 0.6);
+  std::uniform_real_distribution<double> phi(0.0, 2.0 * kPi), z(-21.0, 21.0), dr(-0.6, 0.6);
   int touching = 0;
   for (int i = 0; i < 20000; ++i) {
     const double f = phi(rng), zz = z(rng);
