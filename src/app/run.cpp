@@ -106,6 +106,15 @@ class LoopPoll {
   Clock::time_point last_flush_;
 };
 
+/// The particles every movable block would become: their volume / (D^3 / sqrt 2), the HCP cell.
+double particles_if_all_converted(const scene::Scene& s, const sim::Simulation& sim) {
+  double vol = 0.0;
+  for (const auto& bi : sim.blocks().blocks)
+    if (!bi.def.fixed) vol += 8.0 * bi.def.half_extents.prod();  // walls and floors never convert
+  const double D = s.material.particle_diameter;
+  return vol / (D * D * D / std::sqrt(2.0));
+}
+
 void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Simulation& sim) {
   const auto& hsu = sim.blocks();
   double vol = 0.0;
@@ -117,8 +126,7 @@ void print_check_blocks(std::ostream& out, const scene::Scene& s, const sim::Sim
     }
     vol += 8.0 * bi.def.half_extents.prod();
   }
-  const double D = s.material.particle_diameter;
-  const double est = vol / (D * D * D / std::sqrt(2.0));  // particles if all were converted
+  const double est = particles_if_all_converted(s, sim);
   const sim::RunStats st = sim.run_stats();
   const sim::BlockReport& r = st.blocks;
   out << "blocks:           " << hsu.blocks.size() << " rigid (" << hsu.ridge_blocks_in_file << " in the ridge file";
@@ -151,6 +159,7 @@ double longest_relaxation(const scene::Scene& s) {
   return x.max_time + x.jointed_time + (s.blocks.conversion == "all_at_start" ? x.lattice_time : 0.0);
 }
 
+
 /// What the run-time estimate counts for a scene built as `check` builds it.
 sim::CostInputs cost_inputs(const scene::Scene& s, const sim::Simulation& sim) {
   sim::CostInputs in;
@@ -162,6 +171,14 @@ sim::CostInputs cost_inputs(const scene::Scene& s, const sim::Simulation& sim) {
     in.rigid_dt = sim.hybrid().report().rigid_dt;
     in.solver_iterations = s.blocks.solver_iterations;
     in.relax_time = longest_relaxation(s);
+    if (s.blocks.conversion == "all_at_start") {
+      // The blocks turn into lattices: after the rigid stages with lattice_time (docs/bridge.md,
+      // "all_at_start: the lattices relax"), else before the whole relaxation.
+      in.converted_particles = particles_if_all_converted(s, sim);
+      const auto& x = s.blocks.relax;
+      in.relax_lattice_time = x.lattice_time > 0 ? x.lattice_time : in.relax_time;
+      in.relax_time -= in.relax_lattice_time;
+    }
   }
   return in;
 }
@@ -173,15 +190,19 @@ double print_time_estimate(std::ostream& out, const scene::Scene& s, const sim::
   const sim::CostRates rates = sim::default_cost_rates();
   const sim::CostEstimate e = sim::estimate_cost(in, rates);
   out << "estimated time:   " << duration_text(e.total()) << " on one core: the run " << duration_text(e.run())
-      << " (particles " << duration_text(e.particles) << ": " << sci(in.particles * in.steps, 3)
-      << " particle-steps at ~" << sci(1.0 / rates.particle_step, 2) << "/s";
-  if (in.movable_blocks)
+      << " (particles " << duration_text(e.particles) << ": "
+      << sci((in.particles + in.converted_particles) * in.steps, 3) << " particle-steps at ~"
+      << sci(1.0 / rates.particle_step, 2) << "/s"
+      << (in.converted_particles > 0 ? ", the blocks' ~" + sci(in.converted_particles, 3) + " particles included"
+                                     : std::string());
+  if (in.movable_blocks && e.rigid > 0)
     out << "; rigid world " << duration_text(e.rigid) << ": " << in.movable_blocks << " blocks x "
         << sci(e.rigid_steps, 3) << " rigid steps x " << in.solver_iterations << " solver iterations at ~"
         << sci(rates.block_iteration * 1e9, 2) << " ns";
   out << "; output and the rest ~" << sci(100.0 * rates.output_share, 2) << " %)";
-  if (in.relax_time > 0)
-    out << " + the relaxation at most " << duration_text(e.relaxation()) << " (" << sci(in.relax_time, 3)
+  if (in.relax_time + in.relax_lattice_time > 0)
+    out << " + the relaxation at most " << duration_text(e.relaxation()) << " ("
+        << sci(in.relax_time + in.relax_lattice_time, 3)
         << " s simulated: particles " << duration_text(e.relax_particles) << ", rigid world "
         << duration_text(e.relax_rigid) << ")";
   out << "\n";

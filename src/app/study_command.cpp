@@ -334,6 +334,18 @@ int dry_run(const StudyDef& d, const std::vector<Member>& members, const std::ve
 
 namespace {
 
+/// "2 variants x 3 seeds", or "8 variants, 3 to 5 seeds each" when "variant_seeds" gives some their own.
+std::string seeds_text(const StudyDef& d) {
+  std::size_t lo = SIZE_MAX, hi = 0;
+  for (const study::Variant& v : d.variants) {
+    lo = std::min(lo, v.seeds.size());
+    hi = std::max(hi, v.seeds.size());
+  }
+  const std::string n = std::to_string(d.variants.size()) + " variants";
+  return lo == hi ? n + " x " + std::to_string(lo) + " seeds"
+                  : n + ", " + std::to_string(lo) + " to " + std::to_string(hi) + " seeds each";
+}
+
 /// The members' records from the state file; each recorded member's arguments checked.
 std::vector<MemberRecord> records_of(const StudyDef& d, const std::vector<Member>& members, const json& state,
                                      const fs::path& state_path) {
@@ -378,8 +390,8 @@ int run_members(const StudyDef& d, const std::vector<Member>& members, std::vect
     fs::create_directories((d.output_dir / members[k].output_rel()).parent_path());
     queue.push_back(member_job(d, k, members[k], exe, how[k]));
   }
-  std::fprintf(progress, "study %s: %zu members (%zu variants x %zu seeds): %zu done, %zu to run (-j %d)\n",
-               d.name.c_str(), members.size(), d.variants.size(), d.seeds.size(), done, queue.size(), opt.jobs);
+  std::fprintf(progress, "study %s: %zu members (%s): %zu done, %zu to run (-j %d)\n", d.name.c_str(), members.size(),
+               seeds_text(d).c_str(), done, queue.size(), opt.jobs);
   for (std::size_t k = 0; k < members.size(); ++k)
     if (records[k].status == "failed" && !opt.retry_failed)
       std::fprintf(progress, "study: %s failed earlier (exit %d), not run again (--retry-failed runs it); log %s\n",

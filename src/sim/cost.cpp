@@ -140,17 +140,21 @@ CostRates default_cost_rates() {
 
 CostEstimate estimate_cost(const CostInputs& in, const CostRates& r) {
   CostEstimate e;
-  e.particles = in.particles * static_cast<double>(in.steps) * r.particle_step;
+  const bool converted = in.converted_particles > 0.0;  // all_at_start: no block moves in the run
+  const double run_particles = in.particles + in.converted_particles;
+  e.particles = run_particles * static_cast<double>(in.steps) * r.particle_step;
   const double block_iterations = static_cast<double>(in.movable_blocks) * in.solver_iterations * r.block_iteration;
   if (in.rigid_dt > 0.0 && in.movable_blocks > 0) {
     e.rigid_steps = std::floor(static_cast<double>(in.steps) * in.dt / in.rigid_dt + 1e-9);
-    e.rigid = e.rigid_steps * block_iterations;
+    e.rigid = converted ? 0.0 : e.rigid_steps * block_iterations;
     e.relax_rigid_steps = std::ceil(in.relax_time / in.rigid_dt - 1e-9);
     e.relax_rigid = e.relax_rigid_steps * block_iterations;
   }
   if (in.dt > 0.0) {
     e.relax_steps = std::ceil(in.relax_time / in.dt - 1e-9);
-    e.relax_particles = in.particles * e.relax_steps * r.particle_step;
+    const double lattice_steps = std::ceil(in.relax_lattice_time / in.dt - 1e-9);
+    e.relax_particles = (in.particles * e.relax_steps + run_particles * lattice_steps) * r.particle_step;
+    e.relax_steps += lattice_steps;
   }
   e.other = r.output_share * (e.particles + e.rigid);
   return e;

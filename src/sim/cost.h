@@ -115,7 +115,11 @@ struct CostInputs {
   std::size_t movable_blocks = 0;   ///< rigid blocks that are not fixed
   double rigid_dt = 0.0;            ///< s, the rigid step
   int solver_iterations = 0;        ///< the rigid world's, per rigid step
-  double relax_time = 0.0;          ///< s simulated, the relaxation before the freeze at its longest
+  double relax_time = 0.0;          ///< s simulated, the relaxation's stages of rigid blocks at their longest
+  /// all_at_start: the particles the blocks become at the start (their volume / (D^3/sqrt 2)). The run
+  /// then steps them with the sheet's and no movable block.
+  double converted_particles = 0.0;
+  double relax_lattice_time = 0.0;  ///< s simulated, all_at_start's stage of the converted lattices at its longest
 };
 
 /// The per-unit costs of the estimate: one core of the dev box (2-core VM, GCC 12 -O3 native,
@@ -139,7 +143,9 @@ struct CostEstimate {
 };
 /// particles x steps x particle_step; movable blocks x rigid steps x iterations x block_iteration;
 /// the same for the relaxation's relax_time (relax_time / dt DEM steps of the sheet, relax_time /
-/// rigid_dt rigid steps); the rest as output_share of the run's two.
+/// rigid_dt rigid steps); the rest as output_share of the run's two. With converted_particles
+/// (all_at_start) the run steps particles + converted_particles and no block, and the lattice stage
+/// adds relax_lattice_time / dt DEM steps of them.
 CostEstimate estimate_cost(const CostInputs& in, const CostRates& rates = default_cost_rates());
 
 /// The summary's table: each phase's seconds and share of the wall time, grouped (set-up,

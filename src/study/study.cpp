@@ -5,6 +5,7 @@
 #include "json/reader.h"
 
 #include <algorithm>
+#include <cmath>
 #include <set>
 
 namespace hs::study {
@@ -15,7 +16,8 @@ namespace {
 
 const std::vector<std::string> kKeys = {"description", "base",   "seeds",      "set",
                                         "variants",    "grid",   "reference",  "primary_metric",
-                                        "mpi_ranks",   "mpirun", "output_dir", "windows"};
+                                        "mpi_ranks",   "mpirun", "output_dir", "windows",
+                                        "variant_seeds"};
 
 /// A variant name is a directory name: letters, digits and "_-.=,+" (no "/", not "." or "..").
 void check_name(const std::string& name, const std::string& ptr) {
@@ -48,21 +50,23 @@ std::vector<std::string> overrides(const nlohmann::json& v, const std::string& p
   return out;
 }
 
-std::vector<std::int64_t> seeds(const JsonObject& o) {
-  if (!o.has("seeds")) o.missing("seeds", "the seeds of every variant: a list of integers, or a count n for 1..n");
-  const nlohmann::json& v = o.raw("seeds");
+/// A seed list at `ptr`: a count n (the seeds 1..n) or a non-empty list of distinct integers >= 0.
+std::vector<std::int64_t> seed_list(const nlohmann::json& v, const std::string& ptr) {
   std::vector<std::int64_t> out;
   if (v.is_number()) {
-    const auto n = o.integer<std::int64_t>("seeds", 0, {1, 100000}, "", "a count n runs seeds 1..n, e.g. 3");
-    for (std::int64_t k = 1; k <= n; ++k) out.push_back(k);
+    const double n = v.get<double>();
+    if (!(n >= 1 && n <= 100000) || n != std::floor(n))
+      throw InputError(ptr, "value " + json_show(v) +
+                                " out of range: a count n runs seeds 1..n, a whole number from 1 to 100000, e.g. 3");
+    for (std::int64_t k = 1; k <= static_cast<std::int64_t>(n); ++k) out.push_back(k);
     return out;
   }
   if (!v.is_array() || v.empty())
-    throw InputError("/seeds", "expected a count (e.g. 3 for seeds 1, 2, 3) or a non-empty list of integers, got " +
-                                   json_got(v));
+    throw InputError(ptr, "expected a count (e.g. 3 for seeds 1, 2, 3) or a non-empty list of integers, got " +
+                              json_got(v));
   std::set<std::int64_t> seen;
   for (std::size_t k = 0; k < v.size(); ++k) {
-    const std::string p = "/seeds/" + std::to_string(k);
+    const std::string p = ptr + "/" + std::to_string(k);
     if (!v[k].is_number_integer() || v[k].get<std::int64_t>() < 0)
       throw InputError(p, "expected a whole number >= 0, got " + json_got(v[k]));
     if (!seen.insert(v[k].get<std::int64_t>()).second)
@@ -70,6 +74,34 @@ std::vector<std::int64_t> seeds(const JsonObject& o) {
     out.push_back(v[k].get<std::int64_t>());
   }
   return out;
+}
+
+std::vector<std::int64_t> seeds(const JsonObject& o) {
+  if (!o.has("seeds")) o.missing("seeds", "the seeds of every variant: a list of integers, or a count n for 1..n");
+  return seed_list(o.raw("seeds"), "/seeds");
+}
+
+/// "variant_seeds": variant name -> its own seeds; every other variant keeps the study's.
+void variant_seeds(const JsonObject& o, std::vector<Variant>& variants, const std::vector<std::int64_t>& all) {
+  for (Variant& v : variants) v.seeds = all;
+  if (!o.has("variant_seeds")) return;
+  const nlohmann::json& vs = o.raw("variant_seeds");
+  if (!vs.is_object())
+    throw InputError("/variant_seeds", "expected an object of variant name -> seeds (a count or a list), got " +
+                                           json_got(vs) + "; e.g. {\"reference\": 5}");
+  std::vector<std::string> names;
+  for (const Variant& v : variants) names.push_back(v.name);
+  for (const auto& [name, list] : vs.items()) {
+    const std::string p = "/variant_seeds/" + json_pointer_token(name);
+    const auto it = std::find(names.begin(), names.end(), name);
+    if (it == names.end()) {
+      std::string known;
+      for (const auto& n : names) known += (known.empty() ? "" : ", ") + n;
+      throw InputError(p, "\"" + name + "\" is not a variant of the study" + did_you_mean(name, names) +
+                              "; the variants are: " + known);
+    }
+    variants[static_cast<std::size_t>(it - names.begin())].seeds = seed_list(list, p);
+  }
 }
 
 /// The grid's points in name order of the fields, each as (name, overrides): "f=v,g=w".
@@ -135,7 +167,7 @@ std::vector<Variant> variants(const JsonObject& o) {
 std::vector<Member> StudyDef::members() const {
   std::vector<Member> out;
   for (const Variant& v : variants)
-    for (const std::int64_t s : seeds) {
+    for (const std::int64_t s : v.seeds) {
       Member m{v.name, s, common};
       m.overrides.insert(m.overrides.end(), v.overrides.begin(), v.overrides.end());
       m.overrides.push_back("seed=" + std::to_string(s));
@@ -166,6 +198,7 @@ StudyDef parse_study(const nlohmann::json& doc, const fs::path& study_file) {
                        "\"_\" in the name); make the values or the variant names differ");
     names.push_back(v.name);
   }
+  variant_seeds(o, d.variants, d.seeds);
   d.reference = o.string("reference", "");
   if (!d.reference.empty() && std::find(names.begin(), names.end(), d.reference) == names.end())
     throw InputError("/reference", "\"" + d.reference + "\" is not a variant of the study" +

@@ -17,6 +17,8 @@ namespace hs::study {
 struct Variant {
   std::string name;
   std::vector<std::string> overrides;
+  /// Its seeds: "variant_seeds"[name], else the study's "seeds".
+  std::vector<std::int64_t> seeds;
 };
 
 /// One run of the study: a variant with one seed.
@@ -37,7 +39,8 @@ struct StudyDef {
   std::filesystem::path study_file;
   std::filesystem::path base_scene;       ///< "base"
   std::filesystem::path output_dir;       ///< "output_dir"; default <study dir>/<name>
-  std::vector<std::int64_t> seeds;        ///< "seeds": a list, or a count n = 1..n
+  std::vector<std::int64_t> seeds;        ///< "seeds": a list, or a count n = 1..n (each variant's, unless
+                                          ///< "variant_seeds" gives it its own: Variant::seeds)
   std::vector<std::string> common;        ///< "set": overrides of every member, before the variant's
   std::vector<Variant> variants;          ///< "variants" x "grid", in name order
   std::string reference;                  ///< "reference": a variant name, "" for none

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include "cli_fixtures.h"
 #include "h5_read.h"
+#include "sim/cost.h"
 
 #include <array>
 #include <cmath>
@@ -87,6 +88,50 @@ TEST(Cost, WithoutBlocksNoRigidOrBridgeTime) {
     EXPECT_EQ(scalar(f, p), 0.0) << p;
   EXPECT_EQ(scalar(f, "rigid_steps"), 0.0);
   EXPECT_GT(scalar(f, "particle_forces"), 0.0);
+}
+
+// check's estimate, by its formula: all_at_start steps the sheet and the blocks' particles and no
+// block in the run; its relaxation is the rigid stages (sheet + blocks) and then the lattice stage
+// (sheet + blocks' particles).
+TEST(Cost, EstimateOfAllAtStartStepsTheConvertedParticlesAndNoBlock) {
+  hs::sim::CostInputs in;
+  in.particles = 1000;
+  in.steps = 100;
+  in.dt = 1e-3;
+  in.movable_blocks = 10;
+  in.rigid_dt = 4e-3;
+  in.solver_iterations = 20;
+  in.relax_time = 0.5;
+  hs::sim::CostRates r;
+  r.particle_step = 1e-6;
+  r.block_iteration = 1e-7;
+  r.output_share = 0.0;
+  const hs::sim::CostEstimate hybrid = hs::sim::estimate_cost(in, r);
+  EXPECT_NEAR(hybrid.particles, 1000 * 100 * 1e-6, 1e-15);
+  EXPECT_NEAR(hybrid.rigid, 25 * 10 * 20 * 1e-7, 1e-15);  // floor(100 x 1e-3 / 4e-3) = 25 rigid steps
+  EXPECT_NEAR(hybrid.relax_particles, 1000 * 500 * 1e-6, 1e-15);
+  EXPECT_NEAR(hybrid.relax_rigid, 125 * 10 * 20 * 1e-7, 1e-15);
+  in.converted_particles = 500;
+  in.relax_lattice_time = 0.2;
+  const hs::sim::CostEstimate all = hs::sim::estimate_cost(in, r);
+  EXPECT_NEAR(all.particles, 1500 * 100 * 1e-6, 1e-15);
+  EXPECT_EQ(all.rigid, 0.0);
+  EXPECT_NEAR(all.relax_particles, (1000 * 500 + 1500 * 200) * 1e-6, 1e-15);
+  EXPECT_NEAR(all.relax_rigid, hybrid.relax_rigid, 1e-15);
+  EXPECT_EQ(all.relax_steps, 700.0);
+}
+
+// `check` counts the blocks as the particles all_at_start makes of them, and no rigid world in the run.
+TEST(Cost, CheckCountsAllAtStartsParticlesAndNoRigidWorldInTheRun) {
+  const auto h = hybridsim("check '" + kPinnedScene + "'");
+  ASSERT_EQ(h.rc, 0) << h.err;
+  EXPECT_NE(h.out.find("; rigid world "), std::string::npos) << h.out;
+  EXPECT_EQ(h.out.find("particles included"), std::string::npos) << h.out;
+  const auto a = hybridsim("check '" + kPinnedScene + "' --set blocks.conversion=all_at_start");
+  ASSERT_EQ(a.rc, 0) << a.err;
+  // The two blocks: 0.8 x 0.6 x 0.3 + 1.0 x 0.5 x 0.4 = 0.344 m^3 over D^3 / sqrt 2 (D = 0.25 m) = 31.1.
+  EXPECT_NE(a.out.find("the blocks' ~31.1 particles included"), std::string::npos) << a.out;
+  EXPECT_EQ(a.out.find("; rigid world "), std::string::npos) << a.out;
 }
 
 // A run checkpointed half way and restarted from there: the restarted file counts both processes

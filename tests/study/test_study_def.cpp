@@ -76,6 +76,18 @@ TEST(StudyDef, SeedCountAndGridCrossing) {
   EXPECT_EQ(parse(R"({"base": "base.json", "seeds": 1})").variants[0].name, "base");
 }
 
+// "variant_seeds" gives the named variants their own seeds (count or list); the others run "seeds".
+TEST(StudyDef, VariantSeedsGiveAVariantItsOwnSeeds) {
+  const auto d = parse(R"({"base": "base.json", "seeds": 3, "variants": {"ref": [], "a": ["x=1"], "b": ["x=2"]},
+                           "variant_seeds": {"ref": 5, "b": [7, 2]}, "reference": "ref"})");
+  std::vector<std::string> ids;
+  for (const auto& m : d.members()) ids.push_back(m.id());
+  EXPECT_EQ(ids, (std::vector<std::string>{"a/seed1", "a/seed2", "a/seed3", "b/seed7", "b/seed2", "ref/seed1",
+                                           "ref/seed2", "ref/seed3", "ref/seed4", "ref/seed5"}));
+  EXPECT_EQ(d.members()[3].overrides, (std::vector<std::string>{"x=2", "seed=7"}));
+  EXPECT_EQ(d.seeds, (std::vector<std::int64_t>{1, 2, 3}));
+}
+
 // Every bad field is named by its pointer, with what is wrong and the fix.
 TEST(StudyDef, BadFieldsAreNamedWithTheFix) {
   const auto check = [](const std::string& text, const std::string& path, const std::string& words) {
@@ -101,6 +113,12 @@ TEST(StudyDef, BadFieldsAreNamedWithTheFix) {
   check(R"({"base": "base.json", "seeds": 1, "variants": {"soft": []}, "reference": "sfot"})", "/reference",
         "did you mean \"soft\"");
   check(R"({"base": "base.json", "seeds": 1, "mpi_ranks": 0})", "/mpi_ranks", "out of range");
+  check(R"({"base": "base.json", "seeds": 1, "variants": {"soft": []}, "variant_seeds": {"sfot": 5}})",
+        "/variant_seeds/sfot", "did you mean \"soft\"");
+  check(R"({"base": "base.json", "seeds": 1, "variant_seeds": {"base": [2, 2]}})", "/variant_seeds/base/1",
+        "listed twice");
+  check(R"({"base": "base.json", "seeds": 1, "variant_seeds": {"base": 0}})", "/variant_seeds/base", "out of range");
+  check(R"({"base": "base.json", "seeds": 1, "variant_seeds": [5]})", "/variant_seeds", "expected an object");
   check(R"({"base": "base.json", "seeds": 1, "grid": {"structure.mesh": ["a/b", "a_b"]}})", "/grid",
         "two variants are named \"structure.mesh=a_b\"");
 }
