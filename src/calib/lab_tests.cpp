@@ -67,7 +67,7 @@ ParticleInit site(const Lab& L, const Vec3& x, bool frozen = false) {
 /// The particles of a slice of length 2 D around x = xc (two per lattice row and layer). The
 /// window is offset by D/8: the sites' x are multiples of D/2 from the lattice's start and xc a
 /// multiple of D/4, so a window edge at xc +- D could fall on a site, and rounding then counted
-/// three or one of that row (the 8-layer bending beam read a width 1.25x its own).
+/// three or one of that row (a beam 8 h long at 8 layers read a width 1.25x its own).
 std::size_t slice_count(const std::vector<Vec3>& centres, double xc, double D) {
   std::size_t n = 0;
   for (const auto& x : centres) n += (x.x() >= xc - 0.875 * D && x.x() < xc + 1.125 * D);
