@@ -59,6 +59,7 @@ int calibrate_command(const RunOptions& opt, std::ostream& out, std::FILE* progr
                ci.model.c_str(), ci.layers, s.material.particle_diameter, ci.thickness, ci.kn, ci.ks,
                ci.bond_tensile_strength, ci.strength_source.c_str());
   lo.max_strip_steps = opt.max_strip_steps;
+  lo.linear_regime = !opt.calibrate_scene_strength;
   auto wanted = [&](const std::string& name) { return ("," + opt.calibrate_tests + ",").find("," + name + ",") != std::string::npos; };
   for (std::string rest = opt.calibrate_tests + ","; !rest.empty();) {
     const std::string name = rest.substr(0, rest.find(','));

@@ -119,6 +119,9 @@ void add_calibrate(CLI::App& app, Commands& c) {
                           "DEM steps of the floating-strip test above which its springs are softened and L_c scaled "
                           "back (default 6e4)")
       ->check(CLI::PositiveNumber);
+  c.calibrate->add_flag("--scene-strength", c.opt.calibrate_scene_strength,
+                        "run the bending test with the scene's bond strengths as they are, at its own sigma_f/E, "
+                        "instead of scaled to sigma_f/E = 1.2e-4 (the linear regime the strength table holds for)");
 }
 
 void add_bench(CLI::App& app, Commands& c) {

@@ -34,6 +34,7 @@ struct RunOptions {
   // `hybridsim calibrate` only (calibrate_command.h)
   std::string calibrate_tests = "tension,bending,strip";  ///< --tests: which virtual tests to run
   double max_strip_steps = 6e4;        ///< --max-strip-steps: above it the strip test is softened
+  bool calibrate_scene_strength = false;  ///< --scene-strength: bending at the scene's sigma_f/E, not scaled
 };
 
 /// Exit code of a run stopped by SIGINT/SIGTERM: 128 + the signal (130, 143).

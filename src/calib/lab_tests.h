@@ -13,8 +13,9 @@
 //                  fails there, while the lattice's load after it depends on the dynamics of the
 //                  bond cascade (peak / first 1.3 ... 1.7 with the bond damping and the loading
 //                  rate), so only the first failure is a property of the material.
-//   strip_test     a floating strip (6 L_c long, 6 rows, gravity, Column buoyancy) loaded at one
-//                  end: the deflection profile is fitted with the semi-infinite beam on an elastic
+//   strip_test     a floating strip (6 L_c long, at least 2 h wide: strip_rows, gravity, Column
+//                  buoyancy) loaded at one end: the deflection profile is fitted with the
+//                  semi-infinite beam on an elastic
 //                  foundation, w = e^(-lambda s)(A cos lambda s + B sin lambda s), and
 //                  L_c = 1 / (sqrt(2) lambda) is turned into the plate's (Hetenyi) value with the
 //                  measured nu: L_c,plate = L_c,strip (1 - nu^2)^(-1/4).
@@ -67,11 +68,22 @@ struct StripResult {
 
 struct LabOptions {
   double max_strip_steps = 6e4;  ///< DEM steps of the strip test above which it is softened
+  /// Bending test with the bond strengths scaled to sigma_f/E = 1.2e-4 and the result scaled back
+  /// (true), or at the scene's own strengths (false: `calibrate --scene-strength`).
+  bool linear_regime = true;
   Progress progress;
 };
 
 TensionResult tension_test(const scene::Scene& s, const LabOptions& o);
 BendingResult bending_test(const scene::Scene& s, const LabOptions& o);
+/// Rows of the floating strip: max(6, ceil(2 h / row spacing)), a width of at least 2 h. A floating
+/// box of width W, thickness h and draft d = 0.88 h is stable in roll only while its metacentric
+/// height W^2 / (12 d) - (h - d) / 2 is positive, W > 0.8 h; the HCP B layers' row shift
+/// (0.29 D in y) also sets its centre of mass off the middle. Six rows (W = 1.04 m at D = 0.2 m)
+/// heeled and rolled at 7 layers (h = 1.14 m: the sides 5 cm apart in z after 2 heave periods) and
+/// L_c read +34 %; 14 rows give +0.02 %. At W = 2 h the metacentric height is 0.32 h and the
+/// strip is still narrow beside L_c, so it bends as a beam (the plate conversion below).
+int strip_rows(double h, double D);
 /// `poisson_ratio`: the lattice's (from tension_test), for the plate conversion.
 StripResult strip_test(const scene::Scene& s, double poisson_ratio, const LabOptions& o);
 

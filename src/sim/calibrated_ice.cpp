@@ -100,7 +100,7 @@ namespace {
 // Flexural strength (three-point bending, span 8 h, at the first bond failure, linear regime:
 // bonds scaled to sigma_f/E = 1.2e-4) / bond tensile strength (shear strength equal), measured
 // with `hybridsim calibrate --tests bending` on
-// scenes/level_ice_cone.json with --set ice.thickness (2, 3, 4, 6 layers of D = 0.2 m) and
+// scenes/level_ice_cone.json with --set ice.thickness (2 to 8 layers of D = 0.2 m) and
 // --set material.poisson_ratio = 0.45 (clamped: k_s/k_n = 0.02), 0.3, 0.15 and 0 (k_s = k_n).
 struct FlexRow {
   int layers;
@@ -111,6 +111,10 @@ constexpr FlexRow kFlexural[] = {
     {2, {0.0200, 0.0620, 0.4414, 1.0}, {1.1366, 1.1413, 1.3487, 1.5890}},
     {3, {0.0200, 0.0550, 0.4285, 1.0}, {1.1745, 1.1897, 1.4442, 1.7407}},
     {4, {0.0200, 0.0528, 0.4223, 1.0}, {1.1127, 1.1332, 1.4003, 1.7217}},
+    {5, {0.0200, 0.0513, 0.4186, 1.0}, {1.1491, 1.1750, 1.4712, 1.8259}},
+    {6, {0.0200, 0.0505, 0.4162, 1.0}, {1.1165, 1.1441, 1.4497, 1.8206}},
+    {7, {0.0200, 0.0499, 0.4145, 1.0}, {1.1430, 1.1733, 1.4961, 1.8867}},
+    {8, {0.0200, 0.0494, 0.4132, 1.0}, {1.1220, 1.1530, 1.4823, 1.8838}},
 };
 
 double interp_log(const std::array<double, 4>& x, const std::array<double, 4>& y, double v) {

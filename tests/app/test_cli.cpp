@@ -122,6 +122,19 @@ TEST(Cli, CalibrateReportsTestsNotRunAsNotMeasured) {
   EXPECT_NEAR(j["flexural_strength"]["measured"].get<double>(), 5e4, 5e2);
 }
 
+TEST(Cli, CalibrateSceneStrengthBendsAtTheScenesOwnStrength) {
+  // --scene-strength: the bending test keeps the scene's bond strengths (strength_scale 1) instead
+  // of scaling them to sigma_f/E = 1.2e-4 (0.12 here, 2 layers at sigma_f/E = 1e-3). Without the
+  // flag the scale check fails. The flexural strength at this sigma/E: 9992.7 Pa (-0.073 %; scaled:
+  // 9999.7 Pa).
+  const Result r = hybridsim("calibrate '" HYBRIDSIM_SOURCE_DIR "/scenes/level_ice_cone.json' --tests bending "
+                             "--set ice.thickness=0.33 --set material.flexural_strength=1e4 --scene-strength");
+  ASSERT_EQ(r.rc, 0) << r.err;
+  const json j = json::parse(r.out.substr(r.out.find('{')));
+  EXPECT_EQ(j["tests"]["bending"]["strength_scale"].get<double>(), 1.0);
+  EXPECT_NEAR(j["flexural_strength"]["measured"].get<double>(), 1e4, 70.0);
+}
+
 TEST(Cli, CheckPrintsDerivedFigures) {
   write("tiny.json", tiny().dump(2));
   const Result r = hybridsim("check tiny.json");
