@@ -106,7 +106,7 @@ void variant_seeds(const JsonObject& o, std::vector<Variant>& variants, const st
 
 /// The grid's points in name order of the fields, each as (name, overrides): "f=v,g=w".
 std::vector<Variant> grid_points(const JsonObject& o) {
-  std::vector<Variant> pts{{"", {}}};
+  std::vector<Variant> pts{{"", {}, {}}};
   if (!o.has("grid")) return pts;
   const nlohmann::json& g = o.raw("grid");
   if (!g.is_object() || g.empty())
@@ -126,7 +126,7 @@ std::vector<Variant> grid_points(const JsonObject& o) {
         std::string shown = text;
         for (char& c : shown)
           if (c == '/' || c == ' ') c = '_';
-        next.push_back({v.name + (v.name.empty() ? "" : ",") + field + "=" + shown, v.overrides});
+        next.push_back({v.name + (v.name.empty() ? "" : ",") + field + "=" + shown, v.overrides, {}});
         next.back().overrides.push_back(field + "=" + text);
       }
     pts = std::move(next);
@@ -144,16 +144,16 @@ std::vector<Variant> variants(const JsonObject& o) {
     for (const auto& [name, list] : v.items()) {
       const std::string p = "/variants/" + json_pointer_token(name);
       check_name(name, p);
-      named.push_back({name, overrides(list, p)});
+      named.push_back({name, overrides(list, p), {}});
     }
   } else {
-    named.push_back({"", {}});
+    named.push_back({"", {}, {}});
   }
   std::vector<Variant> out;
   const std::vector<Variant> pts = grid_points(o);
   for (const Variant& a : named)
     for (const Variant& b : pts) {
-      Variant v{a.name + (a.name.empty() || b.name.empty() ? "" : ",") + b.name, a.overrides};
+      Variant v{a.name + (a.name.empty() || b.name.empty() ? "" : ",") + b.name, a.overrides, {}};
       v.overrides.insert(v.overrides.end(), b.overrides.begin(), b.overrides.end());
       if (v.name.empty()) v.name = "base";
       check_name(v.name, o.has("grid") ? "/grid" : "/variants");
