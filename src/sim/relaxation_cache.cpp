@@ -112,6 +112,17 @@ nlohmann::json relaxation_key(const scene::Scene& s) {
   if (sc.contains("time") && sc["time"].is_object())
     for (const char* k : {"duration", "output_interval", "snapshot_interval", "checkpoint_interval"})
       sc["time"].erase(k);
+  // The conversion policy does not act before the freeze (bridge::HybridSystem::step): "never"
+  // and "hybrid" relax alike, whatever the policy's region and safety factor, so members of a
+  // study that differ only there share one relaxation. Not with far sleep, whose wake box is the
+  // region in hybrid mode (region_awake), nor with all_at_start, which converts before relaxing.
+  if (s.has_blocks && s.blocks.conversion != "all_at_start" && !s.blocks.far_sleep && sc.contains("blocks") &&
+      sc["blocks"].is_object()) {
+    nlohmann::json& b = sc["blocks"];
+    b["conversion"] = "never or hybrid";
+    b.erase("region");
+    b.erase("safety_factor");
+  }
   // Files by their content, not their name.
   const auto content = [](const std::string& path, const char* at) {
     const std::string h = file_content_hash(path);

@@ -501,7 +501,9 @@ TEST(Restart, ARestartStepsOnlyFromTheCheckpoint) {
   for (std::size_t i = 0; i < std::min(step_a.size(), step_b.size()); ++i) {
     EXPECT_EQ(step_b[i], step_a[i]) << "row " << i;
     EXPECT_EQ(time_b[i], time_a[i]) << "row " << i;
-    if (i > 0) EXPECT_GT(step_b[i], step_b[i - 1]) << "row " << i;
+    if (i > 0) {
+      EXPECT_GT(step_b[i], step_b[i - 1]) << "row " << i;
+    }
   }
   // B stepped only the steps after the checkpoint, and ended where A ended.
   const std::string said = b.out + b.err;
@@ -575,6 +577,29 @@ TEST(RelaxationCache, ASecondRunWithTheSameKeyLoadsItAndItsSeriesAreBitIdentical
   EXPECT_EQ(string_attribute(work_dir() / "rc_c.h5", "/analysis/relaxation", "source"), "computed");
   EXPECT_EQ(string_attribute(work_dir() / "rc_c.h5", "/analysis/relaxation", "relaxation_file"), "");
   EXPECT_EQ(entries("shared"), 1u);
+}
+
+// The conversion policy does not act before the freeze: a run in "never" mode relaxes the ridge
+// that a hybrid run with another safety factor then loads (one entry), and the hybrid run's series
+// equal those of the same run relaxing for itself, through its first conversions.
+TEST(RelaxationCache, NeverAndHybridWithAnotherSafetyFactorShareOneRelaxation) {
+  make_scene();
+  const std::string env = cache_env("policy");
+  const auto a = hybridsim("run ridge_run.json -o p_a.h5 --set blocks.conversion=never --set time.duration=0.02", env);
+  ASSERT_EQ(a.rc, 0) << a.err;
+  const std::string hybrid = " --set blocks.safety_factor=5 --set time.duration=0.4";
+  const auto b = hybridsim("run ridge_run.json -o p_b.h5" + hybrid, env);
+  ASSERT_EQ(b.rc, 0) << b.err;
+  const auto c = hybridsim("run ridge_run.json -o p_c.h5 --no-cache" + hybrid, env);
+  ASSERT_EQ(c.rc, 0) << c.err;
+  const fs::path fb = work_dir() / "p_b.h5", fc = work_dir() / "p_c.h5";
+  EXPECT_EQ(string_attribute(fb, "/analysis/relaxation", "source"), "loaded");
+  EXPECT_EQ(string_attribute(fc, "/analysis/relaxation", "source"), "computed");
+  EXPECT_EQ(entries("policy"), 1u);
+  const auto conv = read_doubles(fb, "/series/blocks/conversions");
+  ASSERT_FALSE(conv.empty());
+  EXPECT_GE(conv.back(), 1.0) << "the hybrid run reaches its first conversion";
+  expect_same_series(fb, fc);
 }
 
 // A field of the key changed (the water drag enters the relaxation) is another key: the run

@@ -317,7 +317,7 @@ TEST(SphereMeshContact, TheColumnRisesToTheDeckWithNoCapBelowIt) {
     EXPECT_NEAR(k[0].overlap, d, 1e-12);
     EXPECT_LT(std::abs(k[0].normal.z()), 1e-12) << "z = " << z;  // measured 0: a vertical face
   }
-  // A sphere on the axis side of the column's edge at z = 6 m (where the cap was): inside the
+  // A sphere on the axis side of the column's edge at z = 6 m (the top of a 4 m neck): inside the
   // column's solid, more than r from any face, so no contact pushes it up.
   const auto& k = q(grid, (apothem - 0.5) * radial + Vec3(0, 0, 6.0 + r - d), r);
   for (const auto& c : k) EXPECT_LT(c.normal.z(), 0.5);
